@@ -1,0 +1,186 @@
+// uwbloc: replay recorded UWB / LiDAR / odometry data through localisation methods and score
+// them against ground truth. Thin: it parses arguments and calls the libraries.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <unistd.h>
+
+#include "uwbloc/dataset/data_dir.hpp"
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/hanyang_import.hpp"
+#include "uwbloc/dataset/ini_file.hpp"
+#include "uwbloc/evaluation/report.hpp"
+#include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/localization/registry.hpp"
+
+namespace {
+
+using namespace uwbloc;
+
+// "a:k=v,k=v,b" -> {"a:k=v,k=v", "b"}: an item with '=' but no ':' continues the previous spec.
+std::vector<std::string> splitMethods(const std::string& list) {
+  std::vector<std::string> out;
+  std::string item;
+  std::istringstream in(list);
+  while (std::getline(in, item, ',')) {
+    if (item.empty()) continue;
+    if (item.find('=') != std::string::npos && item.find(':') == std::string::npos &&
+        !out.empty())
+      out.back() += "," + item;
+    else
+      out.push_back(item);
+  }
+  if (out.size() == 1 && out[0] == "all") return loc::Registry::builtin().names();
+  return out;
+}
+
+// Parameters for one method from --config (its [method] section) and --set method.key=value.
+loc::ParamSet extraParams(const std::string& method_name, const std::string& config_path,
+                          const std::vector<std::string>& sets) {
+  loc::ParamSet extra;
+  if (!config_path.empty()) {
+    const auto ini = data::IniFile::load(config_path);
+    for (const auto& key : ini.keys(method_name))
+      extra.set(key, *ini.get(method_name, key));
+  }
+  for (const auto& s : sets) {
+    const auto eq = s.find('=');
+    const auto dot = s.rfind('.', eq);
+    if (eq == std::string::npos || dot == std::string::npos)
+      throw loc::ParamError("--set expects method.key=value, got '" + s + "'");
+    if (s.substr(0, dot) == method_name) extra.set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
+  }
+  return extra;
+}
+
+void printProgress(double fraction, const std::string& label) {
+  const bool tty = isatty(fileno(stderr));
+  std::fprintf(stderr, "%s[%s] %3.0f%%%s", tty ? "\r" : "", label.c_str(), 100.0 * fraction,
+               tty ? (fraction >= 1.0 ? "\n" : "") : "\n");
+  std::fflush(stderr);
+}
+
+struct CommonOptions {
+  std::string dataset = "mrpt_uwb_demo.ini";
+  std::string data_dir;
+  std::string out;
+  std::string config;
+  std::vector<std::string> sets;
+  uint64_t seed = 1;
+  int repeat = 1;
+};
+
+int runMethods(const CommonOptions& opt, const std::vector<std::string>& methods) {
+  const std::string data_dir = data::resolveDataDir(opt.data_dir);
+  const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);
+  std::fprintf(stderr, "Loading %s\n", manifest.c_str());
+  const data::Dataset ds = data::loadDataset(manifest, data_dir);
+  // Check every method spec before spending time on any run.
+  for (const auto& m : methods) {
+    loc::EstimatorContext ctx;
+    ctx.anchors = ds.anchors;
+    loc::Registry::builtin().create(
+        m, ctx, extraParams(loc::MethodSpec::parse(m).name, opt.config, opt.sets));
+  }
+  std::vector<eval::MethodSummary> summaries;
+  for (const auto& m : methods) {
+    const auto extra = extraParams(loc::MethodSpec::parse(m).name, opt.config, opt.sets);
+    summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed, extra, printProgress));
+  }
+  const std::string out = opt.out.empty() ? "runs/" + ds.name : opt.out;
+  eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat});
+  std::cout << eval::formatTable(ds, summaries);
+  std::cout << "Run directory: " << out << "\n";
+  return 0;
+}
+
+void addCommon(CLI::App* cmd, CommonOptions& opt) {
+  cmd->add_option("--dataset,-d", opt.dataset,
+                  "dataset manifest (INI); looked up as given, then in the data directory, then "
+                  "in the repository's datasets/")
+      ->capture_default_str();
+  cmd->add_option("--data-dir", opt.data_dir,
+                  "folder of public datasets (default: $UWBLOC_DATA_DIR, else ../shared/datasets)");
+  cmd->add_option("--out,-o", opt.out, "run directory to write (default: runs/<dataset>)");
+  cmd->add_option("--seed", opt.seed, "random seed of the first run")->capture_default_str();
+  cmd->add_option("--config", opt.config,
+                  "INI file with one [method-name] section of parameters per method");
+  cmd->add_option("--set", opt.sets, "override one parameter: method.key=value (repeatable)");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "uwbloc: UWB / LiDAR / odometry localisation. Replays recorded datasets through the "
+      "estimators and compares them against ground truth."};
+  app.require_subcommand(1);
+
+  CommonOptions run_opt;
+  std::string method = "uwb-ekf";
+  auto* run = app.add_subcommand("run", "Run one method on a dataset and score it");
+  addCommon(run, run_opt);
+  run->add_option("--method,-m", method, "method spec, e.g. uwb-kf:q=0.1 (see 'uwbloc methods')")
+      ->capture_default_str();
+
+  CommonOptions cmp_opt;
+  std::string methods = "all";
+  auto* compare = app.add_subcommand(
+      "compare", "Run several methods on one dataset and print the comparison table");
+  addCommon(compare, cmp_opt);
+  compare->add_option("--methods,-m", methods,
+                      "comma-separated method specs, or 'all' for every registered method")
+      ->capture_default_str();
+  compare->add_option("--repeat", cmp_opt.repeat, "runs per method (seeds seed, seed+1, ...)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+
+  std::string format, source, import_out;
+  data::HanyangImportParams hanyang;
+  std::string import_data_dir;
+  auto* import = app.add_subcommand(
+      "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
+  import->add_option("format", format, "source format: hanyang")->required();
+  import->add_option("source", source,
+                     "source folder (as given, or relative to the data directory), e.g. "
+                     "hanyang_outdoor_uwb/LOS_TrajA_Case1")
+      ->required();
+  import->add_option("--out,-o", import_out, "output folder")->required();
+  import->add_option("--data-dir", import_data_dir, "folder of public datasets");
+  import->add_option("--tag-height", hanyang.tag_height, "hanyang: tag height [m]")
+      ->capture_default_str();
+
+  auto* list = app.add_subcommand("methods", "List the methods with their parameters and defaults");
+
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (*run) return runMethods(run_opt, {method});
+    if (*compare) return runMethods(cmp_opt, splitMethods(methods));
+    if (*import) {
+      if (format != "hanyang") {
+        std::cerr << "error: unknown import format '" << format << "' (known: hanyang)\n";
+        return 2;
+      }
+      const std::string src =
+          data::resolveInputPath(source, data::resolveDataDir(import_data_dir));
+      const auto s = data::importHanyang(src, import_out, hanyang);
+      std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors and "
+                << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest << "\n";
+      return 0;
+    }
+    if (*list) {
+      for (const auto& m : loc::Registry::builtin().methods()) {
+        std::cout << m.name << "\n    " << m.description << "\n";
+        for (const auto& p : m.defaults)
+          std::printf("    %-12s = %-8s %s\n", p.key.c_str(), p.value.c_str(), p.help.c_str());
+      }
+      std::cout << "Set parameters in the spec (uwb-kf:q=0.1,sigma=0.2), in a --config INI "
+                   "section [uwb-kf], or with --set uwb-kf.q=0.1.\n";
+      return 0;
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,36 @@
+// A loaded dataset: the event stream, the anchors in the GT frame, and the ground truth.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/manifest.hpp"
+#include "uwbloc/localization/events.hpp"
+
+namespace uwbloc::data {
+
+struct Dataset {
+  Manifest manifest;
+  std::string name;
+  std::vector<loc::Event> events;         ///< time-ordered
+  std::vector<uwb::Anchor> anchors;       ///< map/GT frame
+  std::vector<TimedPose> ground_truth;    ///< may be empty
+  std::map<std::string, long> counts;     ///< what the reader found
+  double start_time = 0.0;
+  double end_time = 0.0;
+  double duration() const { return end_time - start_time; }
+};
+
+/// Loads the manifest, the rawlog, the ground truth and the optional range-feature side file.
+/// The manifest's [tag] keys, when present, override the tag pose recorded in the rawlog.
+Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir);
+
+/// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per
+/// range, in the rawlog's order. CObservationBeaconRanges has no field for the powers, so the
+/// importer writes them here and the loader attaches them to the ranges with the same time and
+/// anchor. Returns how many ranges received features.
+long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& events);
+
+}  // namespace uwbloc::data

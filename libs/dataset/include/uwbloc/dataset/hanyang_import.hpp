@@ -1,0 +1,32 @@
+// Importer for one dynamic run of the Hanyang outdoor UWB dataset.
+//
+// Input folder: one CSV per anchor (A3.csv, A5.csv, ...) with rows
+//   %time,field.stamp,field.id,field.x,field.y,field.z,field.distanceFromTag,field.rssi,
+//   field.rssi_fp
+// (ns timestamps; the anchor's position repeated on every row), and trajectory.csv with
+//   timestamp,x,y,z,heading_degrees (RTK reference in the anchor frame).
+//
+// Output folder: uwb.rawlog (CObservationBeaconRanges, time = field.stamp), anchors.csv,
+// ground_truth.tum, range_features.csv (received and first-path power per range; the format is
+// in dataset.hpp) and dataset.ini, the manifest tying them together.
+#pragma once
+
+#include <string>
+
+namespace uwbloc::data {
+
+struct HanyangImportParams {
+  double tag_height = 1.0;  ///< tag height above the anchors' z datum [m]
+};
+
+struct ImportSummary {
+  std::string manifest;  ///< path of the written manifest
+  long ranges = 0;
+  long anchors = 0;
+  long ground_truth_rows = 0;
+};
+
+ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
+                            const HanyangImportParams& params = {});
+
+}  // namespace uwbloc::data

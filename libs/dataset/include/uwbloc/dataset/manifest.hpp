@@ -1,0 +1,60 @@
+// Dataset manifest: one small INI file naming the pieces of one dataset.
+//
+//   [dataset]
+//   name                = mrpt_uwb_demo
+//   rawlog              = path                 (required)
+//   ground_truth        = path                 (optional)
+//   ground_truth_format = step_xyphi | time_xyphi | tum
+//   map                 = path                 (optional)
+//   range_features      = path                 (optional side file, see hanyang_import.hpp)
+//
+//   [anchors]
+//   anchors_csv = path                         (id,x,y,z rows), and/or MRPT's form:
+//   beacon_001_ID = 1
+//   beacon_001_X = 0.21   beacon_001_Y = -0.55   beacon_001_Z = 1.94
+//   # Pose of the map/GT frame's origin expressed in the anchor frame: "x y yaw_deg".
+//   # An anchor p_a maps to p_gt = R(yaw)^T (p_a - (x, y)); z is unchanged.
+//   gt_origin_in_anchor_frame = 2 4 0
+//
+//   [tag]                                      (optional: overrides the rawlog's sensor pose)
+//   height = 1.12    lever_arm_x = 0.16    lever_arm_y = 0
+//
+// Paths are relative to the manifest's folder; a path starting with "${DATA}/" is relative to
+// the data directory (see data_dir.hpp). Unknown keys are errors that name the line.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "uwbloc/uwb/types.hpp"
+
+namespace uwbloc::data {
+
+enum class GroundTruthFormat { kNone, kStepXyPhi, kTimeXyPhi, kTum };
+
+struct Manifest {
+  std::string path;  ///< the manifest file itself
+  std::string name;
+  std::string rawlog;
+  std::string ground_truth;
+  GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
+  std::string map;
+  std::string range_features;
+  std::vector<uwb::Anchor> anchors;  ///< already in the map/GT frame
+  std::optional<double> tag_height;
+  std::optional<Eigen::Vector2d> lever_arm;
+};
+
+/// Loads and validates a manifest; throws InputError naming the file and line.
+/// `data_dir` resolves "${DATA}/" paths (may be empty when none is configured).
+Manifest loadManifest(const std::string& path, const std::string& data_dir);
+
+/// Loads anchors from a CSV of "id,x,y,z" rows (a header row is allowed).
+std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path);
+
+GroundTruthFormat parseGroundTruthFormat(const std::string& text);
+const char* toString(GroundTruthFormat f);
+
+}  // namespace uwbloc::data

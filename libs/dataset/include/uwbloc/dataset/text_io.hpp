@@ -1,0 +1,22 @@
+// Small text-file helpers with errors that name the file and line.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace uwbloc::data {
+
+/// Calls `on_line(line_number, fields)` for each non-empty, non-comment ('#' or '%') line, with
+/// fields split on commas and/or whitespace. Throws InputError if the file cannot be opened.
+void forEachRow(const std::string& path,
+                const std::function<void(int, const std::vector<std::string>&)>& on_line);
+
+/// Parses a double, or throws InputError naming file, line and field.
+double parseNumber(const std::string& text, const std::string& file, int line,
+                   const std::string& field);
+
+/// Writes `contents` to `path` atomically: a temporary file beside it, then a rename.
+void writeFileAtomic(const std::string& path, const std::string& contents);
+
+}  // namespace uwbloc::data

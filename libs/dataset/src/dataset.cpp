@@ -1,0 +1,69 @@
+#include "uwbloc/dataset/dataset.hpp"
+
+#include <cmath>
+#include <map>
+#include <tuple>
+
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+
+namespace uwbloc::data {
+
+long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& events) {
+  // Key: (time in microseconds, anchor id) -> powers. Rawlog timestamps are stored with
+  // 100 ns resolution, so a microsecond key matches them exactly enough.
+  std::map<std::pair<long long, int>, std::pair<double, double>> features;
+  forEachRow(path, [&](int line, const std::vector<std::string>& f) {
+    if (f.empty() || f[0] == "t") return;
+    if (f.size() != 5)
+      throwInputError(path, line,
+                      "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm', got " +
+                          std::to_string(f.size()));
+    const double t = parseNumber(f[0], path, line, "t");
+    const int id = static_cast<int>(parseNumber(f[1], path, line, "anchor_id"));
+    parseNumber(f[2], path, line, "range");
+    features[{std::llround(t * 1e6), id}] = {parseNumber(f[3], path, line, "rx_power_dbm"),
+                                             parseNumber(f[4], path, line, "fp_power_dbm")};
+  });
+  long attached = 0;
+  for (auto& e : events) {
+    auto* r = std::get_if<uwb::Range>(&e);
+    if (!r) continue;
+    auto it = features.find({std::llround(r->t * 1e6), r->anchor_id});
+    if (it == features.end()) continue;
+    r->rx_power_dbm = it->second.first;
+    r->fp_power_dbm = it->second.second;
+    ++attached;
+  }
+  return attached;
+}
+
+Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir) {
+  Dataset ds;
+  ds.manifest = loadManifest(manifest_path, data_dir);
+  ds.name = ds.manifest.name;
+  ds.anchors = ds.manifest.anchors;
+  Recording rec = readRawlog(ds.manifest.rawlog);
+  ds.events = std::move(rec.events);
+  ds.counts = rec.counts;
+  if (ds.events.empty()) throwInputError(ds.manifest.rawlog, 0, "rawlog holds no usable events");
+
+  for (auto& e : ds.events) {
+    auto* r = std::get_if<uwb::Range>(&e);
+    if (!r) continue;
+    if (ds.manifest.tag_height) r->tag_on_robot.z() = *ds.manifest.tag_height;
+    if (ds.manifest.lever_arm) r->tag_on_robot.head<2>() = *ds.manifest.lever_arm;
+  }
+  if (!ds.manifest.range_features.empty())
+    ds.counts["ranges_with_features"] = attachRangeFeatures(ds.manifest.range_features, ds.events);
+
+  if (!ds.manifest.ground_truth.empty())
+    ds.ground_truth = readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format,
+                                      rec.step_times);
+  ds.start_time = loc::eventTime(ds.events.front());
+  ds.end_time = loc::eventTime(ds.events.back());
+  return ds;
+}
+
+}  // namespace uwbloc::data

@@ -1,0 +1,148 @@
+#include "uwbloc/dataset/manifest.hpp"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/ini_file.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace uwbloc::data {
+
+GroundTruthFormat parseGroundTruthFormat(const std::string& text) {
+  if (text == "step_xyphi") return GroundTruthFormat::kStepXyPhi;
+  if (text == "time_xyphi") return GroundTruthFormat::kTimeXyPhi;
+  if (text == "tum") return GroundTruthFormat::kTum;
+  if (text.empty() || text == "none") return GroundTruthFormat::kNone;
+  throw InputError("unknown ground-truth format '" + text +
+                   "' (expected step_xyphi, time_xyphi or tum)");
+}
+
+const char* toString(GroundTruthFormat f) {
+  switch (f) {
+    case GroundTruthFormat::kStepXyPhi: return "step_xyphi";
+    case GroundTruthFormat::kTimeXyPhi: return "time_xyphi";
+    case GroundTruthFormat::kTum: return "tum";
+    case GroundTruthFormat::kNone: return "none";
+  }
+  return "none";
+}
+
+std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
+  std::vector<uwb::Anchor> anchors;
+  forEachRow(path, [&](int line, const std::vector<std::string>& f) {
+    if (anchors.empty() && !f.empty() && f[0] == "id") return;  // header
+    if (f.size() != 4)
+      throwInputError(path, line, "expected 4 fields 'id,x,y,z', got " + std::to_string(f.size()));
+    uwb::Anchor a;
+    a.id = static_cast<int>(parseNumber(f[0], path, line, "id"));
+    a.position << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
+        parseNumber(f[3], path, line, "z");
+    if (uwb::findAnchor(anchors, a.id))
+      throwInputError(path, line, "duplicate anchor id " + std::to_string(a.id));
+    anchors.push_back(a);
+  });
+  if (anchors.empty()) throwInputError(path, 0, "no anchors");
+  return anchors;
+}
+
+namespace {
+
+std::string resolvePath(const std::string& value, const std::string& manifest_dir,
+                        const std::string& data_dir, const std::string& manifest, int line) {
+  if (value.empty()) return value;
+  const std::string prefix = "${DATA}/";
+  if (value.rfind(prefix, 0) == 0) {
+    if (data_dir.empty())
+      throwInputError(manifest, line,
+                      "path '" + value +
+                          "' needs the data directory: set UWBLOC_DATA_DIR or --data-dir");
+    return (fs::path(data_dir) / value.substr(prefix.size())).string();
+  }
+  const fs::path p(value);
+  return p.is_absolute() ? value : (fs::path(manifest_dir) / p).lexically_normal().string();
+}
+
+}  // namespace
+
+Manifest loadManifest(const std::string& path, const std::string& data_dir) {
+  const IniFile ini = IniFile::load(path);
+  Manifest m;
+  m.path = path;
+  const std::string dir = fs::path(path).parent_path().string();
+  auto pathKey = [&](const char* key) {
+    return resolvePath(ini.getString("dataset", key, ""), dir, data_dir, path,
+                       ini.lineOf("dataset", key));
+  };
+  m.name = ini.getString("dataset", "name", fs::path(path).stem().string());
+  m.rawlog = pathKey("rawlog");
+  if (m.rawlog.empty()) throwInputError(path, 0, "missing key 'rawlog' in section [dataset]");
+  m.ground_truth = pathKey("ground_truth");
+  m.map = pathKey("map");
+  m.range_features = pathKey("range_features");
+  try {
+    m.ground_truth_format = parseGroundTruthFormat(ini.getString("dataset", "ground_truth_format",
+                                                                 m.ground_truth.empty() ? "none"
+                                                                                        : ""));
+  } catch (const InputError& e) {
+    throwInputError(path, ini.lineOf("dataset", "ground_truth_format"), e.what());
+  }
+  if (!m.ground_truth.empty() && m.ground_truth_format == GroundTruthFormat::kNone)
+    throwInputError(path, ini.lineOf("dataset", "ground_truth"),
+                    "ground_truth given without ground_truth_format");
+
+  // Anchors: a CSV and/or MRPT's beacon_NNN_* keys.
+  std::vector<uwb::Anchor> anchors;
+  if (const auto csv = ini.get("anchors", "anchors_csv"))
+    anchors = loadAnchorsCsv(resolvePath(*csv, dir, data_dir, path,
+                                         ini.lineOf("anchors", "anchors_csv")));
+  std::set<std::string> indices;
+  for (const auto& key : ini.keys("anchors")) {
+    if (key.rfind("beacon_", 0) == 0 && key.size() > 10) indices.insert(key.substr(7, 3));
+  }
+  for (const auto& idx : indices) {
+    const std::string base = "beacon_" + idx + "_";
+    for (const char* c : {"ID", "X", "Y", "Z"})
+      if (!ini.get("anchors", base + c))
+        throwInputError(path, ini.lineOf("anchors", base + "ID"),
+                        "anchor " + idx + " lacks key '" + base + c + "'");
+    uwb::Anchor a;
+    a.id = static_cast<int>(ini.getDouble("anchors", base + "ID"));
+    a.position << ini.getDouble("anchors", base + "X"), ini.getDouble("anchors", base + "Y"),
+        ini.getDouble("anchors", base + "Z");
+    if (uwb::findAnchor(anchors, a.id))
+      throwInputError(path, ini.lineOf("anchors", base + "ID"),
+                      "duplicate anchor id " + std::to_string(a.id));
+    anchors.push_back(a);
+  }
+  if (const auto tf = ini.get("anchors", "gt_origin_in_anchor_frame")) {
+    std::istringstream in(*tf);
+    double x = 0, y = 0, yaw_deg = 0;
+    if (!(in >> x >> y >> yaw_deg))
+      throwInputError(path, ini.lineOf("anchors", "gt_origin_in_anchor_frame"),
+                      "expected 'x y yaw_deg', got '" + *tf + "'");
+    const Eigen::Rotation2Dd rot(yaw_deg * M_PI / 180.0);
+    for (auto& a : anchors) {
+      const Eigen::Vector2d p = rot.inverse() * (a.position.head<2>() - Eigen::Vector2d(x, y));
+      a.position.head<2>() = p;
+    }
+  }
+  if (anchors.empty())
+    throwInputError(path, 0,
+                    "no anchors: give [anchors] anchors_csv or beacon_NNN_ID/X/Y/Z keys");
+  m.anchors = anchors;
+
+  if (ini.get("tag", "height")) m.tag_height = ini.getDouble("tag", "height");
+  if (ini.get("tag", "lever_arm_x") || ini.get("tag", "lever_arm_y"))
+    m.lever_arm = Eigen::Vector2d(ini.getDouble("tag", "lever_arm_x", 0.0),
+                                  ini.getDouble("tag", "lever_arm_y", 0.0));
+  ini.rejectUnread();
+  return m;
+}
+
+}  // namespace uwbloc::data

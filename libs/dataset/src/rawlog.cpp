@@ -1,0 +1,256 @@
+#include "uwbloc/dataset/rawlog.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationBeaconRanges.h>
+#include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include "uwbloc/dataset/errors.hpp"
+
+namespace uwbloc::data {
+
+namespace {
+
+using mrpt::obs::CObservation;
+
+double toSeconds(mrpt::Clock::time_point t) {
+  return t == INVALID_TIMESTAMP ? 0.0 : mrpt::Clock::toDouble(t);
+}
+
+class Converter {
+ public:
+  explicit Converter(Recording& rec) : rec_(rec) {}
+
+  // Converts one observation; `fallback_t` is used when it carries no timestamp.
+  void observation(const CObservation& obs, double fallback_t) {
+    double t = toSeconds(obs.timestamp);
+    if (t == 0.0) {
+      t = fallback_t;
+      ++rec_.counts["timestamp_from_frame"];
+    }
+    last_t_ = std::max(last_t_, t);
+    if (const auto* b = dynamic_cast<const mrpt::obs::CObservationBeaconRanges*>(&obs)) {
+      for (const auto& m : b->sensedData) {
+        uwb::Range r;
+        r.t = t;
+        r.anchor_id = static_cast<int>(m.beaconID);
+        r.range = m.sensedDistance;
+        r.tag_on_robot << m.sensorLocationOnRobot.x(), m.sensorLocationOnRobot.y(),
+            m.sensorLocationOnRobot.z();
+        rec_.events.emplace_back(r);
+      }
+      ++rec_.counts["beacon_observations"];
+    } else if (const auto* s = dynamic_cast<const mrpt::obs::CObservation2DRangeScan*>(&obs)) {
+      loc::LaserScan scan;
+      scan.t = t;
+      scan.sensor_pose << s->sensorPose.x(), s->sensorPose.y(), s->sensorPose.yaw();
+      scan.sensor_height = s->sensorPose.z();
+      const size_t n = s->getScanSize();
+      scan.angle_min = static_cast<float>(s->rightToLeft ? -s->aperture / 2 : s->aperture / 2);
+      scan.angle_increment =
+          n > 1 ? static_cast<float>((s->rightToLeft ? 1 : -1) * s->aperture / (n - 1)) : 0.0f;
+      scan.max_range = s->maxRange;
+      scan.ranges.resize(n);
+      scan.valid.resize(n);
+      for (size_t i = 0; i < n; ++i) {
+        scan.ranges[i] = s->getScanRange(i);
+        scan.valid[i] = s->getScanRangeValidity(i) ? 1 : 0;
+      }
+      rec_.events.emplace_back(std::move(scan));
+      ++rec_.counts["scans"];
+    } else if (const auto* o = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs)) {
+      const Eigen::Vector3d pose(o->odometry.x(), o->odometry.y(), o->odometry.phi());
+      if (last_odometry_) {
+        // Increment in the frame of the previous reading: (-prev) (+) current.
+        const Eigen::Vector3d& prev = *last_odometry_;
+        const double c = std::cos(prev.z()), sn = std::sin(prev.z());
+        const Eigen::Vector2d d = pose.head<2>() - prev.head<2>();
+        loc::OdometryIncrement inc;
+        inc.t = t;
+        inc.delta << c * d.x() + sn * d.y(), -sn * d.x() + c * d.y(),
+            loc::wrapAngle(pose.z() - prev.z());
+        rec_.events.emplace_back(inc);
+      }
+      last_odometry_ = pose;
+      ++rec_.counts["odometry_observations"];
+    } else {
+      ++rec_.counts[std::string("ignored_") + obs.GetRuntimeClass()->className];
+    }
+  }
+
+  void sensoryFrame(const mrpt::obs::CSensoryFrame& sf) {
+    double frame_t = 0.0;
+    for (const auto& o : sf)
+      if (o && toSeconds(o->timestamp) != 0.0) {
+        frame_t = toSeconds(o->timestamp);
+        break;
+      }
+    if (frame_t == 0.0) frame_t = last_t_;
+    if (pending_action_) {
+      // The action's motion ends at this frame: stamp it so, and count a step.
+      pending_action_->t = frame_t;
+      rec_.events.emplace_back(*pending_action_);
+      pending_action_.reset();
+      rec_.step_times.push_back(frame_t);
+    }
+    for (const auto& o : sf)
+      if (o) observation(*o, frame_t);
+    ++rec_.counts["sensory_frames"];
+  }
+
+  void actions(const mrpt::obs::CActionCollection& acts) {
+    ++rec_.counts["actions"];
+    const auto move = acts.getBestMovementEstimation();
+    if (!move) return;
+    const auto mean = move->poseChange->getMeanVal();
+    loc::OdometryIncrement inc;
+    inc.t = std::max(last_t_, toSeconds(move->timestamp));
+    inc.delta << mean.x(), mean.y(), mean.phi();
+    pending_action_ = inc;
+  }
+
+  void finish() {
+    if (pending_action_) rec_.events.emplace_back(*pending_action_);  // trailing action
+    std::stable_sort(rec_.events.begin(), rec_.events.end(),
+                     [](const loc::Event& a, const loc::Event& b) {
+                       return loc::eventTime(a) < loc::eventTime(b);
+                     });
+  }
+
+  void observationOnly(const CObservation& obs) {
+    const double t = toSeconds(obs.timestamp);
+    observation(obs, t == 0.0 ? last_t_ : t);
+    rec_.step_times.push_back(t == 0.0 ? last_t_ : t);
+  }
+
+ private:
+  Recording& rec_;
+  double last_t_ = 0.0;
+  std::optional<loc::OdometryIncrement> pending_action_;
+  std::optional<Eigen::Vector3d> last_odometry_;
+};
+
+}  // namespace
+
+Recording readRawlog(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throwInputError(path, 0, "rawlog not found");
+  mrpt::io::CFileGZInputStream in;
+  if (!in.open(path)) throwInputError(path, 0, "cannot open rawlog");
+  auto archive = mrpt::serialization::archiveFrom(in);
+  Recording rec;
+  Converter conv(rec);
+  long objects = 0;
+  for (;;) {
+    mrpt::serialization::CSerializable::Ptr obj;
+    try {
+      obj = archive.ReadObject();
+    } catch (const mrpt::serialization::CExceptionEOF&) {
+      // A clean end of file: nothing of a next object was read.
+      if (in.checkEOF()) break;
+      throwInputError(path, 0,
+                      "truncated rawlog after " + std::to_string(objects) + " objects");
+    } catch (const std::exception& e) {
+      throwInputError(path, 0,
+                      "corrupt or truncated rawlog after " + std::to_string(objects) +
+                          " objects: " + std::string(e.what()).substr(0, 200));
+    }
+    ++objects;
+    if (!obj) continue;
+    if (const auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj)) {
+      conv.sensoryFrame(*sf);
+    } else if (const auto acts = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(obj)) {
+      conv.actions(*acts);
+    } else if (const auto obs = std::dynamic_pointer_cast<CObservation>(obj)) {
+      conv.observationOnly(*obs);
+    } else {
+      ++rec.counts[std::string("ignored_") + obj->GetRuntimeClass()->className];
+    }
+  }
+  if (objects == 0) throwInputError(path, 0, "empty rawlog");
+  conv.finish();
+  return rec;
+}
+
+void writeRawlog(const std::string& path, const std::vector<loc::Event>& events) {
+  const std::string tmp = path + ".tmp";
+  {
+    mrpt::io::CFileGZOutputStream out;
+    if (!out.open(tmp)) throwInputError(path, 0, "cannot write rawlog");
+    auto archive = mrpt::serialization::archiveFrom(out);
+    mrpt::obs::CObservationBeaconRanges::Ptr pending;
+    auto flush = [&] {
+      if (pending) archive << *pending;
+      pending.reset();
+    };
+    Eigen::Vector3d odometry = Eigen::Vector3d::Zero();
+    bool odometry_started = false;
+    for (const auto& e : events) {
+      if (const auto* r = std::get_if<uwb::Range>(&e)) {
+        const auto ts = mrpt::Clock::fromDouble(r->t);
+        if (pending && pending->timestamp != ts) flush();
+        if (!pending) {
+          pending = std::make_shared<mrpt::obs::CObservationBeaconRanges>();
+          pending->timestamp = ts;
+          pending->sensorLabel = "UWB";
+          pending->minSensorDistance = 0;
+          pending->maxSensorDistance = 1000;
+          pending->stdError = 0.1f;
+        }
+        mrpt::obs::CObservationBeaconRanges::TMeasurement m;
+        m.beaconID = r->anchor_id;
+        m.sensedDistance = static_cast<float>(r->range);
+        m.sensorLocationOnRobot =
+            mrpt::poses::CPoint3D(r->tag_on_robot.x(), r->tag_on_robot.y(), r->tag_on_robot.z());
+        pending->sensedData.push_back(m);
+        continue;
+      }
+      flush();
+      if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) {
+        mrpt::obs::CObservationOdometry obs;
+        obs.timestamp = mrpt::Clock::fromDouble(o->t);
+        obs.sensorLabel = "ODOMETRY";
+        if (!odometry_started) {
+          // The first reading is the origin; increments follow from the next one.
+          mrpt::obs::CObservationOdometry origin = obs;
+          origin.odometry = mrpt::poses::CPose2D(0, 0, 0);
+          archive << origin;
+          odometry_started = true;
+        }
+        odometry = loc::composePose(odometry, o->delta);
+        obs.odometry = mrpt::poses::CPose2D(odometry.x(), odometry.y(), odometry.z());
+        archive << obs;
+      } else if (const auto* s = std::get_if<loc::LaserScan>(&e)) {
+        mrpt::obs::CObservation2DRangeScan obs;
+        obs.timestamp = mrpt::Clock::fromDouble(s->t);
+        obs.sensorLabel = "LIDAR";
+        obs.sensorPose = mrpt::poses::CPose3D(s->sensor_pose.x(), s->sensor_pose.y(),
+                                              s->sensor_height, s->sensor_pose.z(), 0, 0);
+        const size_t n = s->ranges.size();
+        obs.resizeScan(n);
+        obs.rightToLeft = s->angle_increment >= 0.0f;
+        obs.aperture = std::abs(s->angle_increment) * static_cast<float>(n > 1 ? n - 1 : 1);
+        obs.maxRange = s->max_range;
+        for (size_t i = 0; i < n; ++i) {
+          obs.setScanRange(i, s->ranges[i]);
+          obs.setScanRangeValidity(i, s->valid[i] != 0);
+        }
+        archive << obs;
+      }
+    }
+    flush();
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throwInputError(path, 0, "cannot rename temporary rawlog: " + ec.message());
+}
+
+}  // namespace uwbloc::data

@@ -1,0 +1,78 @@
+#include "uwbloc/dataset/text_io.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "uwbloc/dataset/errors.hpp"
+
+namespace uwbloc::data {
+
+void throwInputError(const std::string& file, int line, const std::string& message) {
+  std::ostringstream out;
+  out << file;
+  if (line > 0) out << ":" << line;
+  out << ": " << message;
+  throw InputError(out.str());
+}
+
+void forEachRow(const std::string& path,
+                const std::function<void(int, const std::vector<std::string>&)>& on_line) {
+  std::ifstream in(path);
+  if (!in) throwInputError(path, 0, "cannot open file");
+  std::string line;
+  int number = 0;
+  std::vector<std::string> fields;
+  while (std::getline(in, line)) {
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#' || line[first] == '%') continue;
+    fields.clear();
+    if (line.find(',') != std::string::npos) {
+      // Comma-separated: keep empty fields, trim blanks around each.
+      std::string field;
+      std::istringstream cells(line);
+      while (std::getline(cells, field, ',')) {
+        const auto b = field.find_first_not_of(" \t");
+        const auto e = field.find_last_not_of(" \t");
+        fields.push_back(b == std::string::npos ? "" : field.substr(b, e - b + 1));
+      }
+      if (line.back() == ',') fields.emplace_back();
+    } else {
+      std::istringstream cells(line);
+      std::string field;
+      while (cells >> field) fields.push_back(field);
+    }
+    on_line(number, fields);
+  }
+}
+
+double parseNumber(const std::string& text, const std::string& file, int line,
+                   const std::string& field) {
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE)
+    throwInputError(file, line, "field '" + field + "': expected a number, got '" + text + "'");
+  return v;
+}
+
+void writeFileAtomic(const std::string& path, const std::string& contents) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throwInputError(path, 0, "cannot write file");
+    out << contents;
+    out.flush();
+    if (!out) throwInputError(path, 0, "write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throwInputError(path, 0, "cannot rename temporary file: " + ec.message());
+}
+
+}  // namespace uwbloc::data

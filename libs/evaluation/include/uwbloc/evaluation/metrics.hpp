@@ -1,0 +1,48 @@
+// Association of estimates with ground truth, and the error metrics.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/localization/estimator.hpp"
+
+namespace uwbloc::eval {
+
+/// Ground truth at time t, linearly interpolated (heading along the shorter arc). Nothing when
+/// t is outside the ground truth or the bracketing samples are more than `max_gap` apart.
+std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<data::TimedPose>& gt,
+                                                      double t, double max_gap);
+
+struct ErrorSample {
+  double t = 0.0;
+  double ex = 0.0, ey = 0.0;  ///< estimate minus truth [m]
+  double e2d = 0.0;           ///< planar error [m]
+};
+
+/// One error sample per estimate that has ground truth at its time.
+std::vector<ErrorSample> associate(const std::vector<loc::PoseEstimate>& estimates,
+                                   const std::vector<data::TimedPose>& gt, double max_gap = 1.0);
+
+struct Metrics {
+  long steps = 0;       ///< estimates produced
+  long associated = 0;  ///< estimates with ground truth
+  double coverage = 0.0;  ///< fraction of ground-truth samples with an estimate within tolerance
+  double rmse_x = 0.0, rmse_y = 0.0;
+  double rmse_2d = 0.0;  ///< sqrt(rmse_x^2 + rmse_y^2), the PF-IBAS paper's RMSE_z
+  double mae_2d = 0.0, median_2d = 0.0, p95_2d = 0.0, max_2d = 0.0;
+  std::vector<std::pair<double, double>> cdf;  ///< (error [m], fraction <= error), 21 points
+};
+
+/// Metrics of the errors; `coverage_tolerance` [s] is how near an estimate must be to a
+/// ground-truth sample to cover it.
+Metrics computeMetrics(const std::vector<ErrorSample>& errors,
+                       const std::vector<loc::PoseEstimate>& estimates,
+                       const std::vector<data::TimedPose>& gt, double coverage_tolerance = 1.0);
+
+/// Quantile q in [0, 1] by linear interpolation of the sorted values.
+double quantile(std::vector<double> values, double q);
+
+}  // namespace uwbloc::eval

@@ -1,0 +1,38 @@
+// Output of a run: trajectories (TUM), metrics.json, metrics.csv, the effective configuration
+// and the console table. Every file is written atomically (temporary file, then rename).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/evaluation/runner.hpp"
+
+namespace uwbloc::eval {
+
+/// "t x y z qx qy qz qw" rows, z = 0.
+std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory);
+
+/// metrics.json. The schema is stable: later work may add fields, never rename them.
+std::string formatMetricsJson(const data::Dataset& dataset,
+                              const std::vector<MethodSummary>& methods);
+std::string formatMetricsCsv(const data::Dataset& dataset,
+                             const std::vector<MethodSummary>& methods);
+/// The comparison table printed on the console (and saved as report.txt).
+std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods);
+
+/// A file name for a method spec ("uwb-kf:q=0.1" -> "uwb-kf_q-0.1").
+std::string fileLabel(const std::string& spec);
+
+struct RunInfo {
+  std::string dataset_manifest;
+  std::string data_dir;
+  uint64_t seed = 1;
+  int repeat = 1;
+};
+
+/// Writes every output file of a run into `out_dir` (created if needed).
+void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
+                       const std::vector<MethodSummary>& methods, const RunInfo& info);
+
+}  // namespace uwbloc::eval

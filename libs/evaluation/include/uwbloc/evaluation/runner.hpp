@@ -1,0 +1,56 @@
+// Runs methods over a dataset and scores them: the harness behind `uwbloc run` and `compare`.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/evaluation/metrics.hpp"
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/params.hpp"
+
+namespace uwbloc::eval {
+
+/// Called now and then on long runs: fraction done in [0, 1] and the method's label.
+using ProgressFn = std::function<void(double fraction, const std::string& label)>;
+
+struct RunResult {
+  std::string spec;  ///< method spec as given
+  std::string name;  ///< registry name
+  std::vector<loc::ParamInfo> parameters;       ///< effective parameters
+  std::vector<loc::PoseEstimate> trajectory;    ///< one pose per timestamp (the latest wins)
+  loc::EstimatorStatistics statistics;
+  double processing_seconds = 0.0;  ///< wall time inside the estimator
+  uint64_t seed = 0;
+};
+
+/// Replays the dataset through one method. The start pose and time given to the method are the
+/// first ground-truth pose, when there is one.
+RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
+                    const loc::ParamSet& extra = {}, const ProgressFn& progress = nullptr);
+
+struct MethodSummary {
+  std::string spec;
+  std::string name;
+  int runs = 0;
+  Metrics metrics;           ///< of the first run (trajectory, CDF), with rmse averaged over runs
+  double rmse_2d_std = 0.0;  ///< std of the 2D RMSE over runs
+  double ms_per_step = 0.0;
+  double realtime_factor = 0.0;  ///< dataset duration / processing time
+  std::map<std::string, long> rejected;
+  std::map<int, std::map<std::string, long>> rejected_by_anchor;
+  long accepted_ranges = 0;
+  long resets = 0;
+  std::vector<loc::ParamInfo> parameters;
+  std::vector<loc::PoseEstimate> trajectory;  ///< of the first run
+};
+
+/// Runs `spec` `repeat` times with seeds seed, seed+1, ... and summarises.
+MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& spec, int repeat,
+                             uint64_t seed, const loc::ParamSet& extra = {},
+                             const ProgressFn& progress = nullptr);
+
+}  // namespace uwbloc::eval

@@ -1,0 +1,189 @@
+#include "uwbloc/evaluation/report.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace uwbloc::eval {
+
+namespace {
+
+long totalRejected(const MethodSummary& m) {
+  long n = 0;
+  for (const auto& [reason, count] : m.rejected) n += count;
+  return n;
+}
+
+// JSON numbers must be finite; a metric that could not be computed is written as null.
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; }
+
+}  // namespace
+
+std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory) {
+  std::string out;
+  out.reserve(trajectory.size() * 80);
+  char buf[256];
+  for (const auto& p : trajectory) {
+    std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.t, p.pose.x(),
+                  p.pose.y(), std::sin(p.pose.z() / 2.0), std::cos(p.pose.z() / 2.0));
+    out += buf;
+  }
+  return out;
+}
+
+std::string fileLabel(const std::string& spec) {
+  std::string out;
+  for (char c : spec) {
+    if (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.' || c == '+')
+      out += c;
+    else if (c == '=')
+      out += '-';
+    else
+      out += '_';
+  }
+  return out;
+}
+
+std::string formatMetricsJson(const data::Dataset& dataset,
+                              const std::vector<MethodSummary>& methods) {
+  nlohmann::json j;
+  j["dataset"] = dataset.name;
+  j["duration_s"] = number(dataset.duration());
+  j["methods"] = nlohmann::json::array();
+  for (const auto& m : methods) {
+    nlohmann::json e;
+    e["name"] = m.spec;
+    e["method"] = m.name;
+    e["runs"] = m.runs;
+    e["steps"] = m.metrics.steps;
+    e["coverage"] = number(m.metrics.coverage);
+    e["rmse_x"] = number(m.metrics.rmse_x);
+    e["rmse_y"] = number(m.metrics.rmse_y);
+    e["rmse_2d"] = number(m.metrics.rmse_2d);
+    e["rmse_2d_std"] = number(m.rmse_2d_std);
+    e["mae_2d"] = number(m.metrics.mae_2d);
+    e["median_2d"] = number(m.metrics.median_2d);
+    e["p95_2d"] = number(m.metrics.p95_2d);
+    e["max_2d"] = number(m.metrics.max_2d);
+    e["ms_per_step"] = number(m.ms_per_step);
+    e["realtime_factor"] = number(m.realtime_factor);
+    e["rejected"] = nlohmann::json::object();
+    for (const auto& [reason, count] : m.rejected) e["rejected"][reason] = count;
+    e["rejected_by_anchor"] = nlohmann::json::object();
+    for (const auto& [anchor, reasons] : m.rejected_by_anchor)
+      for (const auto& [reason, count] : reasons)
+        e["rejected_by_anchor"][std::to_string(anchor)][reason] = count;
+    e["accepted_ranges"] = m.accepted_ranges;
+    e["resets"] = m.resets;
+    e["associated"] = m.metrics.associated;
+    e["cdf"] = nlohmann::json::array();
+    for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
+    e["parameters"] = nlohmann::json::object();
+    for (const auto& p : m.parameters) e["parameters"][p.key] = p.value;
+    j["methods"].push_back(e);
+  }
+  return j.dump(2) + "\n";
+}
+
+std::string formatMetricsCsv(const data::Dataset& dataset,
+                             const std::vector<MethodSummary>& methods) {
+  std::ostringstream out;
+  out << "dataset,method,runs,steps,coverage,rmse_x,rmse_y,rmse_2d,rmse_2d_std,mae_2d,"
+         "median_2d,p95_2d,max_2d,ms_per_step,realtime_factor,rejected_total,resets\n";
+  for (const auto& m : methods) {
+    out << dataset.name << ",\"" << m.spec << "\"," << m.runs << "," << m.metrics.steps << ","
+        << m.metrics.coverage << "," << m.metrics.rmse_x << "," << m.metrics.rmse_y << ","
+        << m.metrics.rmse_2d << "," << m.rmse_2d_std << "," << m.metrics.mae_2d << ","
+        << m.metrics.median_2d << "," << m.metrics.p95_2d << "," << m.metrics.max_2d << ","
+        << m.ms_per_step << "," << m.realtime_factor << "," << totalRejected(m) << ","
+        << m.resets << "\n";
+  }
+  return out.str();
+}
+
+std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods) {
+  std::ostringstream out;
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "Dataset %s: %.1f s, %zu events, %zu ground-truth poses\n",
+                dataset.name.c_str(), dataset.duration(), dataset.events.size(),
+                dataset.ground_truth.size());
+  out << buf;
+  std::snprintf(buf, sizeof buf, "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %9s %8s %7s\n",
+                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "mae",
+                "median", "p95", "max", "ms/step", "xRT", "reject");
+  out << buf;
+  for (const auto& m : methods) {
+    std::snprintf(buf, sizeof buf,
+                  "%-22s %4d %6ld %5.2f %7.3f %7.3f %7.3f %6.3f %7.3f %7.3f %7.3f %7.3f %9.4f "
+                  "%8.0f %7ld\n",
+                  m.spec.c_str(), m.runs, m.metrics.steps, m.metrics.coverage, m.metrics.rmse_x,
+                  m.metrics.rmse_y, m.metrics.rmse_2d, m.rmse_2d_std, m.metrics.mae_2d,
+                  m.metrics.median_2d, m.metrics.p95_2d, m.metrics.max_2d, m.ms_per_step,
+                  m.realtime_factor, totalRejected(m));
+    out << buf;
+  }
+  out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
+         "samples with an estimate within 1 s; xRT = real-time factor.\n";
+  for (const auto& m : methods) {
+    if (m.rejected.empty()) continue;
+    out << "  " << m.spec << " rejected:";
+    for (const auto& [reason, count] : m.rejected) out << " " << reason << "=" << count;
+    if (!m.rejected_by_anchor.empty()) {
+      out << "  | by anchor:";
+      for (const auto& [anchor, reasons] : m.rejected_by_anchor) {
+        out << " " << anchor << "{";
+        bool first = true;
+        for (const auto& [reason, count] : reasons) {
+          out << (first ? "" : ",") << reason << "=" << count;
+          first = false;
+        }
+        out << "}";
+      }
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
+                       const std::vector<MethodSummary>& methods, const RunInfo& info) {
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) data::throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  const fs::path dir(out_dir);
+  for (const auto& m : methods)
+    data::writeFileAtomic((dir / (fileLabel(m.spec) + ".tum")).string(),
+                          formatTrajectoryTum(m.trajectory));
+  data::writeFileAtomic((dir / "metrics.json").string(), formatMetricsJson(dataset, methods));
+  data::writeFileAtomic((dir / "metrics.csv").string(), formatMetricsCsv(dataset, methods));
+  data::writeFileAtomic((dir / "report.txt").string(), formatTable(dataset, methods));
+
+  std::ostringstream cfg;
+  cfg << "# Effective configuration of this run\n[run]\n"
+      << "dataset = " << info.dataset_manifest << "\n"
+      << "data_dir = " << info.data_dir << "\n"
+      << "seed = " << info.seed << "\n"
+      << "repeat = " << info.repeat << "\n";
+  cfg << "\n[dataset]\nname = " << dataset.name << "\nrawlog = " << dataset.manifest.rawlog
+      << "\nground_truth = " << dataset.manifest.ground_truth
+      << "\nground_truth_format = " << data::toString(dataset.manifest.ground_truth_format)
+      << "\n";
+  cfg << "\n[anchors]\n";
+  for (const auto& a : dataset.anchors)
+    cfg << "# anchor " << a.id << " (map frame): " << a.position.x() << " " << a.position.y()
+        << " " << a.position.z() << "\n";
+  for (const auto& m : methods) {
+    cfg << "\n[" << m.spec << "]\n";
+    for (const auto& p : m.parameters) cfg << p.key << " = " << p.value << "\n";
+  }
+  data::writeFileAtomic((dir / "config.ini").string(), cfg.str());
+}
+
+}  // namespace uwbloc::eval

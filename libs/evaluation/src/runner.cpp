@@ -1,0 +1,119 @@
+#include "uwbloc/evaluation/runner.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "uwbloc/localization/registry.hpp"
+
+namespace uwbloc::eval {
+
+RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
+                    const loc::ParamSet& extra, const ProgressFn& progress) {
+  loc::EstimatorContext ctx;
+  ctx.anchors = dataset.anchors;
+  ctx.seed = seed;
+  if (!dataset.ground_truth.empty()) {
+    ctx.initial_pose = dataset.ground_truth.front().pose;
+    ctx.initial_time = dataset.ground_truth.front().t;
+  }
+  auto estimator = loc::Registry::builtin().create(spec, ctx, extra);
+
+  RunResult result;
+  result.spec = spec;
+  result.name = estimator->name();
+  result.parameters = estimator->parameters();
+  result.seed = seed;
+  result.trajectory.reserve(dataset.events.size() / 2 + 1);
+
+  using Clock = std::chrono::steady_clock;
+  const auto wall_start = Clock::now();
+  auto last_report = wall_start;
+  double busy = 0.0;
+  auto keep = [&](std::optional<loc::PoseEstimate> est) {
+    if (!est) return;
+    // Several events can share a timestamp (ranges of one frame): the latest estimate wins.
+    if (!result.trajectory.empty() && result.trajectory.back().t >= est->t) {
+      if (result.trajectory.back().t == est->t) result.trajectory.back() = *est;
+      return;
+    }
+    result.trajectory.push_back(*est);
+  };
+  const size_t n = dataset.events.size();
+  for (size_t i = 0; i < n; ++i) {
+    const auto t0 = Clock::now();
+    auto est = estimator->process(dataset.events[i]);
+    busy += std::chrono::duration<double>(Clock::now() - t0).count();
+    keep(std::move(est));
+    if (progress && (i & 255) == 0) {
+      const auto now = Clock::now();
+      if (now - wall_start > std::chrono::seconds(2) &&
+          now - last_report > std::chrono::milliseconds(500)) {
+        progress(static_cast<double>(i) / static_cast<double>(n), spec);
+        last_report = now;
+      }
+    }
+  }
+  const auto t0 = Clock::now();
+  auto last = estimator->finish();
+  busy += std::chrono::duration<double>(Clock::now() - t0).count();
+  keep(std::move(last));
+  if (progress && Clock::now() - wall_start > std::chrono::seconds(2)) progress(1.0, spec);
+  result.statistics = estimator->statistics();
+  result.processing_seconds = busy;
+  return result;
+}
+
+MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& spec, int repeat,
+                             uint64_t seed, const loc::ParamSet& extra,
+                             const ProgressFn& progress) {
+  MethodSummary s;
+  s.spec = spec;
+  repeat = std::max(1, repeat);
+  std::vector<double> rmse;
+  double seconds = 0.0;
+  long steps = 0;
+  double sum_x = 0.0, sum_y = 0.0, sum_2d = 0.0, sum_mae = 0.0, sum_med = 0.0, sum_p95 = 0.0,
+         sum_max = 0.0;
+  for (int r = 0; r < repeat; ++r) {
+    RunResult run = runMethod(dataset, spec, seed + static_cast<uint64_t>(r), extra, progress);
+    const auto errors = associate(run.trajectory, dataset.ground_truth);
+    const Metrics m = computeMetrics(errors, run.trajectory, dataset.ground_truth);
+    rmse.push_back(m.rmse_2d);
+    sum_x += m.rmse_x;
+    sum_y += m.rmse_y;
+    sum_2d += m.rmse_2d;
+    sum_mae += m.mae_2d;
+    sum_med += m.median_2d;
+    sum_p95 += m.p95_2d;
+    sum_max += m.max_2d;
+    seconds += run.processing_seconds;
+    steps += m.steps;
+    if (r == 0) {
+      s.name = run.name;
+      s.metrics = m;
+      s.parameters = run.parameters;
+      s.trajectory = std::move(run.trajectory);
+      s.rejected = run.statistics.rejected;
+      s.rejected_by_anchor = run.statistics.rejected_by_anchor;
+      s.accepted_ranges = run.statistics.accepted_ranges;
+      s.resets = run.statistics.resets;
+    }
+  }
+  const double n = repeat;
+  s.runs = repeat;
+  s.metrics.rmse_x = sum_x / n;
+  s.metrics.rmse_y = sum_y / n;
+  s.metrics.rmse_2d = sum_2d / n;
+  s.metrics.mae_2d = sum_mae / n;
+  s.metrics.median_2d = sum_med / n;
+  s.metrics.p95_2d = sum_p95 / n;
+  s.metrics.max_2d = sum_max / n;
+  double var = 0.0;
+  for (double v : rmse) var += (v - s.metrics.rmse_2d) * (v - s.metrics.rmse_2d);
+  s.rmse_2d_std = repeat > 1 ? std::sqrt(var / (n - 1)) : 0.0;
+  s.ms_per_step = steps > 0 ? 1e3 * seconds / static_cast<double>(steps) : 0.0;
+  s.realtime_factor = seconds > 0.0 ? n * dataset.duration() / seconds : 0.0;
+  return s;
+}
+
+}  // namespace uwbloc::eval

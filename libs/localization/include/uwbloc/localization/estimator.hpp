@@ -1,0 +1,75 @@
+// One interface for every localisation method: feed events, get timestamped poses.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "uwbloc/localization/events.hpp"
+#include "uwbloc/localization/params.hpp"
+#include "uwbloc/uwb/gates.hpp"
+#include "uwbloc/uwb/types.hpp"
+
+namespace uwbloc::loc {
+
+struct PoseEstimate {
+  double t = 0.0;
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();  ///< (x, y, theta), map frame
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  bool heading_valid = true;  ///< false when the method does not observe heading
+};
+
+struct EstimatorStatistics {
+  std::map<std::string, long> rejected;                       ///< reason -> count
+  std::map<int, std::map<std::string, long>> rejected_by_anchor;  ///< anchor -> reason -> count
+  long accepted_ranges = 0;
+  long resets = 0;  ///< divergence re-initialisations
+};
+
+/// What a method may know besides the events: anchors, the start pose (for tracking and dead
+/// reckoning, taken from the first ground-truth pose), and the run's seed.
+struct EstimatorContext {
+  std::vector<uwb::Anchor> anchors;
+  std::optional<Eigen::Vector3d> initial_pose;
+  double initial_time = 0.0;
+  uint64_t seed = 1;
+};
+
+class Estimator {
+ public:
+  virtual ~Estimator() = default;
+  /// Consumes one event; may return a pose estimate at that event's time. Never returns NaN:
+  /// a non-finite estimate is counted, the method is reset and nothing is returned.
+  std::optional<PoseEstimate> process(const Event& event);
+  /// Called once at the end of the stream, for methods that buffer (epochs).
+  std::optional<PoseEstimate> finish();
+
+  const std::string& name() const { return name_; }
+  const EstimatorStatistics& statistics() const { return stats_; }
+  /// Effective parameters (after defaults and overrides).
+  const std::vector<ParamInfo>& parameters() const { return params_; }
+  void setIdentity(std::string name, std::vector<ParamInfo> params) {
+    name_ = std::move(name);
+    params_ = std::move(params);
+  }
+
+ protected:
+  virtual std::optional<PoseEstimate> doProcess(const Event& event) = 0;
+  virtual std::optional<PoseEstimate> doFinish() { return std::nullopt; }
+  /// Forget the state after divergence; the next events re-initialise.
+  virtual void reset() {}
+
+  void countRejection(uwb::RejectReason reason, int anchor_id);
+  void countRejection(const std::string& reason, int anchor_id = -1);
+  EstimatorStatistics stats_;
+
+ private:
+  std::optional<PoseEstimate> guard(std::optional<PoseEstimate> estimate);
+  std::string name_;
+  std::vector<ParamInfo> params_;
+};
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,75 @@
+// uwb-ekf: extended Kalman filter updating on each range directly (tightly coupled), with a
+// constant-velocity state [x y vx vy] of the tag and a Mahalanobis innovation gate.
+//
+// Faulty anchors often report long runs of smoothly wrong ranges (the MRPT demo's beacon 1 is
+// off by up to 10 m for tens of seconds), which an innovation gate alone lets back in as soon as
+// the error shrinks below the gate. So an anchor whose range is gated is quarantined: its ranges
+// are used again only after `readmit` consecutive ones pass the gate and lie within
+// `readmit_tol` of the prediction. The second test matters where the other anchors leave a
+// direction unobserved (on the line through two anchors): there the state's variance, and with
+// it the gate, grows without bound, and a steady wrong range would otherwise be readmitted.
+#pragma once
+
+#include <Eigen/Core>
+#include <map>
+
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/motion_models.hpp"
+#include "uwbloc/localization/range_front_end.hpp"
+
+namespace uwbloc::loc {
+
+struct UwbEkfParams {
+  RangeFrontEndParams front;
+  double epoch_window = 0.15;  ///< epoch window for the initial multilateration fix [s]
+  double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
+  double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
+  double gate = 9.0;           ///< chi-square gate on one range innovation (3 sigma, 1 dof)
+  int max_gated = 12;          ///< consecutive gated ranges before re-initialising
+  int readmit = 3;             ///< consecutive in-gate ranges before a quarantined anchor is used
+  double readmit_tol = 1.0;    ///< and each within this of the prediction [m]
+  double init_residual = 0.5;  ///< largest residual norm of an initial fix [m]
+
+  template <class V>
+  void visit(V&& v) {
+    front.visit(v);
+    v("window", epoch_window, "epoch window of the initial fix [s]");
+    v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
+    v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
+    v("gate", gate, "chi-square gate on each range innovation (1 dof)");
+    v("max_gated", max_gated, "consecutive gated ranges before re-initialising");
+    v("readmit", readmit, "in-gate ranges in a row before a gated anchor is used again");
+    v("readmit_tol", readmit_tol, "largest |innovation| that counts towards readmission [m]");
+    v("init_residual", init_residual, "largest residual norm of the initial fix [m]");
+  }
+};
+
+class UwbEkf : public Estimator {
+ public:
+  UwbEkf(const UwbEkfParams& params, const EstimatorContext& context);
+
+ protected:
+  std::optional<PoseEstimate> doProcess(const Event& event) override;
+  void reset() override;
+
+ private:
+  void predict(double t);
+  /// Returns false when the innovation gate rejects the range.
+  bool inGate(const AcceptedRange& r, double* innovation, Eigen::RowVector4d* hj,
+              double* s) const;
+  void update(double innovation, const Eigen::RowVector4d& hj, double s);
+  PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
+
+  UwbEkfParams params_;
+  RangeFrontEnd front_;
+  EpochBuffer init_epochs_;
+  HeadingFromMotion heading_;
+  bool initialised_ = false;
+  int gated_in_a_row_ = 0;
+  std::map<int, int> quarantine_;  ///< anchor -> in-gate ranges seen since it was gated
+  double t_ = 0.0;
+  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
+};
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,60 @@
+// uwb-kf: linear Kalman filter, constant-velocity state [x y vx vy] of the tag, measuring the
+// position given by per-epoch multilateration (loosely coupled; the greenhouse paper's setup).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/motion_models.hpp"
+#include "uwbloc/localization/range_front_end.hpp"
+
+namespace uwbloc::loc {
+
+struct UwbKfParams {
+  RangeFrontEndParams front;
+  double epoch_window = 0.15;   ///< ranges within this span form one epoch [s]
+  std::string solver = "ls";    ///< multilateration for the measurement: ls, gn or chan
+  double accel_psd = 0.5;       ///< q, white-acceleration spectral density [m^2/s^3]
+  double velocity_tau = 0.0;    ///< velocity correlation time [s]; 0 = constant velocity
+  double gate = 13.8;           ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
+  int max_gated = 5;            ///< consecutive gated fixes before re-initialising
+  double init_residual = 0.5;   ///< largest residual norm of a fix used to (re)initialise [m]
+
+  template <class V>
+  void visit(V&& v) {
+    front.visit(v);
+    v("window", epoch_window, "epoch window [s]");
+    v("solver", solver, "multilateration solver for the measurement: ls, gn, chan");
+    v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
+    v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
+    v("gate", gate, "chi-square gate on the position innovation (2 dof)");
+    v("max_gated", max_gated, "consecutive gated fixes before re-initialising");
+    v("init_residual", init_residual, "largest residual norm of an initialising fix [m]");
+  }
+};
+
+class UwbKf : public Estimator {
+ public:
+  UwbKf(const UwbKfParams& params, const EstimatorContext& context);
+
+ protected:
+  std::optional<PoseEstimate> doProcess(const Event& event) override;
+  std::optional<PoseEstimate> doFinish() override;
+  void reset() override { initialised_ = false; }
+
+ private:
+  std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch);
+
+  UwbKfParams params_;
+  RangeFrontEnd front_;
+  EpochBuffer epochs_;
+  HeadingFromMotion heading_;
+  bool initialised_ = false;
+  int gated_in_a_row_ = 0;
+  double t_ = 0.0;
+  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
+};
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,119 @@
+// Method parameters: "key=value" pairs from a method spec ("uwb-kf:q=0.05,r=0.1") or an INI
+// section, loaded into a component's Params struct. Each Params struct lists its fields once,
+// in a visit() member, and that one list serves loading, printing and `uwbloc methods`.
+#pragma once
+
+#include <map>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace uwbloc::loc {
+
+struct ParamInfo {
+  std::string key;
+  std::string value;  ///< default (in a description) or effective value (after loading)
+  std::string help;
+};
+
+/// Bad user input about methods or parameters.
+class ParamError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class ParamSet {
+ public:
+  ParamSet() = default;
+  /// Parses "k=v,k=v"; throws ParamError naming the malformed item.
+  static ParamSet parse(const std::string& text, const std::string& context);
+  void set(const std::string& key, const std::string& value) { values_[key] = value; }
+  bool has(const std::string& key) const { return values_.count(key) != 0; }
+  /// Copies every key of `other` over this set's values.
+  void merge(const ParamSet& other) {
+    for (const auto& [k, v] : other.values_) values_[k] = v;
+  }
+  bool empty() const { return values_.empty(); }
+
+  /// Reads `key` into `value` when present (marking it used); throws ParamError on a value of
+  /// the wrong type.
+  template <class T>
+  void read(const std::string& key, T& value) {
+    auto it = values_.find(key);
+    if (it == values_.end()) return;
+    used_.push_back(key);
+    std::istringstream in(it->second);
+    T parsed{};
+    in >> parsed;
+    if (in.fail() || !(in >> std::ws).eof())
+      throw ParamError(context_ + ": parameter '" + key + "' has invalid value '" + it->second +
+                       "'");
+    value = parsed;
+  }
+  /// Throws ParamError listing keys that no field read.
+  void checkAllUsed(const std::vector<std::string>& known) const;
+  const std::string& context() const { return context_; }
+  void setContext(const std::string& c) { context_ = c; }
+
+ private:
+  std::map<std::string, std::string> values_;
+  std::vector<std::string> used_;
+  std::string context_;
+};
+
+template <>
+inline void ParamSet::read<std::string>(const std::string& key, std::string& value) {
+  auto it = values_.find(key);
+  if (it == values_.end()) return;
+  used_.push_back(key);
+  value = it->second;
+}
+
+template <>
+inline void ParamSet::read<bool>(const std::string& key, bool& value) {
+  auto it = values_.find(key);
+  if (it == values_.end()) return;
+  used_.push_back(key);
+  const std::string& v = it->second;
+  if (v == "1" || v == "true" || v == "on" || v == "yes") {
+    value = true;
+  } else if (v == "0" || v == "false" || v == "off" || v == "no") {
+    value = false;
+  } else {
+    throw ParamError(context_ + ": parameter '" + key + "' expects a boolean, got '" + v + "'");
+  }
+}
+
+namespace detail {
+template <class T>
+std::string formatValue(const T& v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+inline std::string formatValue(bool v) { return v ? "1" : "0"; }
+}  // namespace detail
+
+/// Loads every field a Params struct visits from `set`, then rejects unknown keys.
+template <class P>
+void loadParams(ParamSet& set, P& params) {
+  std::vector<std::string> known;
+  params.visit([&](const char* key, auto& field, const char*) {
+    set.read(key, field);
+    known.emplace_back(key);
+  });
+  set.checkAllUsed(known);
+}
+
+/// Lists a Params struct's fields with their current values and help text.
+template <class P>
+std::vector<ParamInfo> describeParams(P params) {
+  std::vector<ParamInfo> out;
+  params.visit([&](const char* key, auto& field, const char* help) {
+    out.push_back({key, detail::formatValue(field), help});
+  });
+  return out;
+}
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,77 @@
+// What every UWB method does to a range before using it: validity checks, anchor look-up,
+// time order, the optional increment-queue gate, and the height projection of eq. (3).
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/uwb/gates.hpp"
+#include "uwbloc/uwb/multilateration.hpp"
+
+namespace uwbloc::loc {
+
+struct RangeFrontEndParams {
+  double sigma = 0.15;          ///< range standard deviation [m]
+  double max_range = 100.0;     ///< longer ranges are rejected [m]
+  bool increment_gate = true;   ///< apply the increment-queue gate
+  int iq_length = 5;            ///< increment queue length n
+  double iq_zeta = 3.0;         ///< increment queue scale ζ
+  double iq_max_speed = 2.0;    ///< fastest plausible tag speed [m/s]
+  double iq_floor = 0.3;        ///< increment tolerance for noise [m]
+
+  template <class V>
+  void visit(V&& v) {
+    v("sigma", sigma, "range standard deviation [m]");
+    v("max_range", max_range, "ranges beyond this are rejected [m]");
+    v("iq", increment_gate, "increment-queue gate on/off");
+    v("iq_n", iq_length, "increment queue length");
+    v("iq_zeta", iq_zeta, "increment queue scale on the mean recent increment");
+    v("iq_vmax", iq_max_speed, "increment queue: fastest plausible speed [m/s]");
+    v("iq_floor", iq_floor, "increment queue: noise tolerance [m]");
+  }
+};
+
+/// A range that passed the front end.
+struct AcceptedRange {
+  uwb::Range measurement;
+  Eigen::Vector3d anchor;  ///< anchor position [m]
+  double planar = 0.0;     ///< height-projected range, eq. (3) [m]
+};
+
+class RangeFrontEnd {
+ public:
+  RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors);
+  /// Returns the accepted range, or the reason it was rejected.
+  std::optional<AcceptedRange> accept(const uwb::Range& range, uwb::RejectReason* reason);
+  const std::vector<uwb::Anchor>& anchors() const { return anchors_; }
+
+ private:
+  RangeFrontEndParams params_;
+  std::vector<uwb::Anchor> anchors_;
+  uwb::IncrementQueueGate increments_;
+  double last_t_ = -1e300;
+};
+
+/// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds
+/// after its first range, or a second range from an anchor already in it.
+class EpochBuffer {
+ public:
+  explicit EpochBuffer(double window) : window_(window) {}
+  /// Adds a range; returns the epoch it closed, if any.
+  std::optional<std::vector<AcceptedRange>> add(const AcceptedRange& r);
+  /// Returns the open epoch, if any, and empties the buffer.
+  std::optional<std::vector<AcceptedRange>> flush();
+
+ private:
+  double window_;
+  std::vector<AcceptedRange> open_;
+};
+
+/// Planar ranges of an epoch, ready for the multilateration solvers.
+std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, double sigma);
+
+/// Latest timestamp in an epoch.
+double epochTime(const std::vector<AcceptedRange>& epoch);
+
+}  // namespace uwbloc::loc

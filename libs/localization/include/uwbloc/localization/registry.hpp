@@ -1,0 +1,76 @@
+// Method registry: maps a spec such as "uwb-kf:q=0.05,sigma=0.1" to a configured estimator, so
+// the CLI, the tests and the benchmarks all reach every method the same way.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/params.hpp"
+
+namespace uwbloc::loc {
+
+struct MethodSpec {
+  std::string name;  ///< registry name, e.g. "uwb-kf"
+  ParamSet params;   ///< overrides from the spec
+  std::string text;  ///< the spec as given, used to label the run
+  /// Splits "name:k=v,k=v"; throws ParamError on malformed text.
+  static MethodSpec parse(const std::string& spec);
+};
+
+struct MethodInfo {
+  std::string name;
+  std::string description;
+  std::vector<ParamInfo> defaults;
+  std::function<std::unique_ptr<Estimator>(ParamSet&, const EstimatorContext&)> make;
+};
+
+class Registry {
+ public:
+  /// The registry with every built-in method.
+  static const Registry& builtin();
+
+  void add(MethodInfo info);
+  const MethodInfo* find(const std::string& name) const;
+  const std::vector<MethodInfo>& methods() const { return methods_; }
+  std::vector<std::string> names() const;
+
+  /// Builds the estimator for `spec`, with `extra` (e.g. from a config file) applied before the
+  /// spec's own overrides. Throws ParamError for an unknown method or parameter.
+  std::unique_ptr<Estimator> create(const std::string& spec, const EstimatorContext& context,
+                                    const ParamSet& extra = {}) const;
+
+ private:
+  std::vector<MethodInfo> methods_;
+};
+
+/// Registration helper: a method whose estimator is constructed as Est(Params, context).
+template <class Est, class Params>
+MethodInfo makeMethod(std::string name, std::string description,
+                      std::function<std::unique_ptr<Estimator>(const Params&,
+                                                               const EstimatorContext&)>
+                          factory = nullptr) {
+  MethodInfo info;
+  info.name = name;
+  info.description = std::move(description);
+  info.defaults = describeParams(Params{});
+  info.make = [name, factory](ParamSet& set, const EstimatorContext& ctx) {
+    Params params;
+    set.setContext("method '" + name + "'");
+    loadParams(set, params);
+    std::unique_ptr<Estimator> est;
+    if (factory) {
+      est = factory(params, ctx);
+    } else if constexpr (std::is_constructible_v<Est, const Params&, const EstimatorContext&>) {
+      est = std::make_unique<Est>(params, ctx);
+    }
+    est->setIdentity(name, describeParams(params));
+    return est;
+  };
+  return info;
+}
+
+}  // namespace uwbloc::loc

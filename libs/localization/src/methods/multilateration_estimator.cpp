@@ -1,0 +1,64 @@
+#include "uwbloc/localization/methods/multilateration_estimator.hpp"
+
+namespace uwbloc::loc {
+
+MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
+                                                   const MultilaterationParams& params,
+                                                   const EstimatorContext& context)
+    : solver_(solver),
+      params_(params),
+      front_(params.front, context.anchors),
+      epochs_(params.epoch_window) {
+  if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
+}
+
+std::optional<PoseEstimate> MultilaterationEstimator::doProcess(const Event& event) {
+  const auto* range = std::get_if<uwb::Range>(&event);
+  if (!range) return std::nullopt;
+  uwb::RejectReason reason{};
+  const auto accepted = front_.accept(*range, &reason);
+  if (!accepted) {
+    countRejection(reason, range->anchor_id);
+    return std::nullopt;
+  }
+  ++stats_.accepted_ranges;
+  if (auto epoch = epochs_.add(*accepted)) return solveEpoch(*epoch);
+  return std::nullopt;
+}
+
+std::optional<PoseEstimate> MultilaterationEstimator::doFinish() {
+  if (auto epoch = epochs_.flush()) return solveEpoch(*epoch);
+  return std::nullopt;
+}
+
+std::optional<PoseEstimate> MultilaterationEstimator::solveEpoch(
+    const std::vector<AcceptedRange>& epoch) {
+  const auto planar = toPlanar(epoch, params_.front.sigma);
+  uwb::Fix fix;
+  switch (solver_) {
+    case MultilaterationSolver::kLinearLS: fix = uwb::solveLinearLS(planar); break;
+    case MultilaterationSolver::kGaussNewton: fix = uwb::solveGaussNewton(planar); break;
+    case MultilaterationSolver::kChan: fix = uwb::solveChan(planar); break;
+  }
+  if (!fix.ok()) {
+    countRejection(std::string("epoch_") + uwb::toString(fix.status));
+    return std::nullopt;
+  }
+  const double t = epochTime(epoch);
+  if (last_tag_ && t > last_t_) heading_.update((fix.position - *last_tag_) / (t - last_t_));
+  last_tag_ = fix.position;
+  last_t_ = t;
+
+  PoseEstimate est;
+  est.t = t;
+  const Eigen::Vector2d robot =
+      robotFromTag(fix.position, epoch.front().measurement.tag_on_robot, heading_.heading());
+  est.pose << robot, heading_.heading();
+  est.covariance.setZero();
+  est.covariance.topLeftCorner<2, 2>() = fix.covariance;
+  est.covariance(2, 2) = M_PI * M_PI;
+  est.heading_valid = false;
+  return est;
+}
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,71 @@
+#include "uwbloc/localization/range_front_end.hpp"
+
+#include <algorithm>
+
+#include "uwbloc/uwb/range_model.hpp"
+
+namespace uwbloc::loc {
+
+RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors)
+    : params_(params),
+      anchors_(std::move(anchors)),
+      increments_(uwb::IncrementQueueParams{params.iq_length, params.iq_zeta, params.iq_max_speed,
+                                            params.iq_floor, 10}) {}
+
+std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
+                                                   uwb::RejectReason* reason) {
+  auto fail = [&](uwb::RejectReason r) {
+    if (reason) *reason = r;
+    return std::nullopt;
+  };
+  if (auto bad = uwb::checkValidity(range.range, {1e-3, params_.max_range})) return fail(*bad);
+  const uwb::Anchor* anchor = uwb::findAnchor(anchors_, range.anchor_id);
+  if (!anchor) return fail(uwb::RejectReason::kUnknownAnchor);
+  if (range.t < last_t_ - 1e-9) return fail(uwb::RejectReason::kTimeBackwards);
+  last_t_ = std::max(last_t_, range.t);
+  const double dz = anchor->position.z() - range.tag_on_robot.z();
+  const auto planar = uwb::projectToPlane(range.range, dz);
+  if (!planar) return fail(uwb::RejectReason::kBelowHeight);
+  if (params_.increment_gate && !increments_.accept(range.anchor_id, range.t, range.range))
+    return fail(uwb::RejectReason::kIncrement);
+  return AcceptedRange{range, anchor->position, *planar};
+}
+
+std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& r) {
+  std::optional<std::vector<AcceptedRange>> closed;
+  if (!open_.empty()) {
+    const bool too_late = r.measurement.t - open_.front().measurement.t > window_;
+    const bool repeated =
+        std::any_of(open_.begin(), open_.end(), [&](const AcceptedRange& o) {
+          return o.measurement.anchor_id == r.measurement.anchor_id;
+        });
+    if (too_late || repeated) {
+      closed = std::move(open_);
+      open_.clear();
+    }
+  }
+  open_.push_back(r);
+  return closed;
+}
+
+std::optional<std::vector<AcceptedRange>> EpochBuffer::flush() {
+  if (open_.empty()) return std::nullopt;
+  std::vector<AcceptedRange> out = std::move(open_);
+  open_.clear();
+  return out;
+}
+
+std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, double sigma) {
+  std::vector<uwb::PlanarRange> out;
+  out.reserve(epoch.size());
+  for (const auto& r : epoch) out.push_back({r.anchor.head<2>(), r.planar, sigma});
+  return out;
+}
+
+double epochTime(const std::vector<AcceptedRange>& epoch) {
+  double t = epoch.front().measurement.t;
+  for (const auto& r : epoch) t = std::max(t, r.measurement.t);
+  return t;
+}
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,85 @@
+#include "uwbloc/localization/registry.hpp"
+
+#include "uwbloc/localization/methods/multilateration_estimator.hpp"
+#include "uwbloc/localization/methods/odometry_estimator.hpp"
+#include "uwbloc/localization/methods/uwb_ekf.hpp"
+#include "uwbloc/localization/methods/uwb_kf.hpp"
+
+namespace uwbloc::loc {
+
+namespace {
+
+MethodInfo multilaterationMethod(const std::string& name, const std::string& description,
+                                 MultilaterationSolver solver) {
+  return makeMethod<MultilaterationEstimator, MultilaterationParams>(
+      name, description,
+      [solver](const MultilaterationParams& p, const EstimatorContext& ctx) {
+        return std::make_unique<MultilaterationEstimator>(solver, p, ctx);
+      });
+}
+
+Registry makeBuiltin() {
+  Registry r;
+  r.add(multilaterationMethod("uwb-ls", "UWB only: linearised least squares per epoch",
+                              MultilaterationSolver::kLinearLS));
+  r.add(multilaterationMethod("uwb-gn", "UWB only: weighted Gauss-Newton per epoch",
+                              MultilaterationSolver::kGaussNewton));
+  r.add(multilaterationMethod("uwb-chan", "UWB only: Chan's two-step WLS per epoch",
+                              MultilaterationSolver::kChan));
+  r.add(makeMethod<UwbKf, UwbKfParams>(
+      "uwb-kf", "UWB only: constant-velocity KF on multilateration fixes (loosely coupled)"));
+  r.add(makeMethod<UwbEkf, UwbEkfParams>(
+      "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)"));
+  r.add(makeMethod<OdometryEstimator, OdometryParams>(
+      "odom", "Odometry only: dead reckoning from the first ground-truth pose"));
+  return r;
+}
+
+}  // namespace
+
+MethodSpec MethodSpec::parse(const std::string& spec) {
+  MethodSpec out;
+  out.text = spec;
+  const auto colon = spec.find(':');
+  out.name = spec.substr(0, colon);
+  if (out.name.empty()) throw ParamError("empty method name in '" + spec + "'");
+  if (colon != std::string::npos)
+    out.params = ParamSet::parse(spec.substr(colon + 1), "method '" + out.name + "'");
+  return out;
+}
+
+const Registry& Registry::builtin() {
+  static const Registry registry = makeBuiltin();
+  return registry;
+}
+
+void Registry::add(MethodInfo info) { methods_.push_back(std::move(info)); }
+
+const MethodInfo* Registry::find(const std::string& name) const {
+  for (const auto& m : methods_)
+    if (m.name == name) return &m;
+  return nullptr;
+}
+
+std::vector<std::string> Registry::names() const {
+  std::vector<std::string> out;
+  for (const auto& m : methods_) out.push_back(m.name);
+  return out;
+}
+
+std::unique_ptr<Estimator> Registry::create(const std::string& spec,
+                                            const EstimatorContext& context,
+                                            const ParamSet& extra) const {
+  MethodSpec parsed = MethodSpec::parse(spec);
+  const MethodInfo* info = find(parsed.name);
+  if (!info) {
+    std::string known;
+    for (const auto& m : methods_) known += (known.empty() ? "" : ", ") + m.name;
+    throw ParamError("unknown method '" + parsed.name + "' (known: " + known + ")");
+  }
+  ParamSet merged = extra;
+  merged.merge(parsed.params);  // the spec overrides the config file
+  return info->make(merged, context);
+}
+
+}  // namespace uwbloc::loc

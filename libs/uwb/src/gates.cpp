@@ -1,0 +1,94 @@
+#include "uwbloc/uwb/gates.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace uwbloc::uwb {
+
+const char* toString(RejectReason r) {
+  switch (r) {
+    case RejectReason::kNonFinite: return "non_finite";
+    case RejectReason::kZero: return "zero_range";
+    case RejectReason::kNegative: return "negative_range";
+    case RejectReason::kBeyondMax: return "beyond_max_range";
+    case RejectReason::kBelowHeight: return "below_height_difference";
+    case RejectReason::kUnknownAnchor: return "unknown_anchor";
+    case RejectReason::kIncrement: return "increment_queue";
+    case RejectReason::kChiSquare: return "chi_square";
+    case RejectReason::kThreeSigma: return "three_sigma";
+    case RejectReason::kInnovation: return "innovation_gate";
+    case RejectReason::kTimeBackwards: return "time_backwards";
+  }
+  return "unknown";
+}
+
+std::optional<RejectReason> checkValidity(double range, const ValidityParams& params) {
+  if (!std::isfinite(range)) return RejectReason::kNonFinite;
+  if (range < 0.0) return RejectReason::kNegative;
+  if (range <= params.min_range) return RejectReason::kZero;
+  if (range > params.max_range) return RejectReason::kBeyondMax;
+  return std::nullopt;
+}
+
+bool IncrementQueueGate::accept(int anchor_id, double t, double range) {
+  const int n = std::clamp(params_.queue_length, 1, 32);
+  auto [it, inserted] = state_.try_emplace(anchor_id);
+  AnchorState& s = it->second;
+  if (inserted) {
+    s.last_range = range;
+    s.last_t = t;
+    return true;
+  }
+  const double inc = range - s.last_range;
+  double mean_abs = 0.0;
+  for (int j = 0; j < s.count; ++j) mean_abs += std::abs(s.increments[static_cast<size_t>(j)]);
+  if (s.count > 0) mean_abs /= s.count;
+  const double dt = std::max(0.0, t - s.last_t);
+  const double y = params_.zeta * mean_abs + params_.max_speed * dt + params_.noise_floor -
+                   std::abs(inc);
+  if (y > 0.0) {
+    s.increments[static_cast<size_t>(s.head)] = inc;  // overwrites the increment of t-n+1
+    s.head = (s.head + 1) % n;
+    s.count = std::min(s.count + 1, n);
+    s.last_range = range;
+    s.last_t = t;
+    s.consecutive_rejects = 0;
+    return true;
+  }
+  if (++s.consecutive_rejects >= params_.max_consecutive_rejects) {
+    s = AnchorState{};
+    s.last_range = range;
+    s.last_t = t;
+    ++reseeds_;
+  }
+  return false;
+}
+
+bool ChiSquareGate::accept(double residual, double variance) const {
+  if (!(variance > 0.0) || !std::isfinite(residual)) return false;
+  return residual * residual / variance <= threshold_;
+}
+
+bool ThreeSigmaGate::accept(int anchor_id, double residual) {
+  if (!std::isfinite(residual)) return false;
+  const int n = std::clamp(params_.window, 2, 128);
+  Window& w = windows_[anchor_id];
+  if (w.count >= params_.min_samples) {
+    double mean = 0.0;
+    for (int j = 0; j < w.count; ++j) mean += w.values[static_cast<size_t>(j)];
+    mean /= w.count;
+    double var = 0.0;
+    for (int j = 0; j < w.count; ++j) {
+      const double d = w.values[static_cast<size_t>(j)] - mean;
+      var += d * d;
+    }
+    const double sigma = std::max(std::sqrt(var / (w.count - 1)), params_.min_sigma);
+    if (std::abs(residual - mean) > params_.k * sigma) return false;
+  }
+  w.values[static_cast<size_t>(w.head)] = residual;
+  w.head = (w.head + 1) % n;
+  w.count = std::min(w.count + 1, n);
+  return true;
+}
+
+}  // namespace uwbloc::uwb
