@@ -1,2 +1,237 @@
+// Dataset layer: manifests, anchors, ground-truth readers, rawlog reading and writing, and the
+// errors each bad input gets.
 #include <gtest/gtest.h>
-TEST(Placeholder, Builds) { SUCCEED(); }
+
+#include <cmath>
+#include <fstream>
+
+#include "test_helpers.hpp"
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/manifest.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
+
+using namespace uwbloc;
+using data::InputError;
+using test::expectErrorMentions;
+using test::writeText;
+
+namespace {
+
+const std::string kManifest = std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini";
+
+std::string minimalManifest(const std::string& extra_anchor_line = "") {
+  return "[dataset]\nrawlog = log.rawlog\n\n[anchors]\nbeacon_001_ID = 1\nbeacon_001_X = 1\n"
+         "beacon_001_Y = 2\nbeacon_001_Z = 3\n" +
+         extra_anchor_line;
+}
+
+}  // namespace
+
+TEST(Manifest, DemoManifestMapsAnchorsIntoTheGroundTruthFrame) {
+  const auto m = data::loadManifest(kManifest, "");
+  ASSERT_EQ(m.anchors.size(), 3u);
+  // Beacon frame minus the start pose (2, 4, 0 deg).
+  EXPECT_NEAR(m.anchors[0].position.x(), -1.79, 1e-12);
+  EXPECT_NEAR(m.anchors[0].position.y(), -4.55, 1e-12);
+  EXPECT_NEAR(m.anchors[2].position.x(), 4.7023, 1e-12);
+  EXPECT_NEAR(m.anchors[2].position.y(), 0.3185, 1e-12);
+  EXPECT_NEAR(m.anchors[1].position.z(), 1.04, 1e-12);
+  EXPECT_EQ(m.ground_truth_format, data::GroundTruthFormat::kStepXyPhi);
+  EXPECT_DOUBLE_EQ(*m.tag_height, 1.12);
+}
+
+TEST(Manifest, RotatedFrameTransform) {
+  const auto dir = test::scratchDir();
+  const auto path = writeText(dir / "m.ini", minimalManifest("gt_origin_in_anchor_frame = 1 2 90\n"));
+  const auto m = data::loadManifest(path, "");
+  // p_gt = R(90)^T ((1,2) - (1,2)) = 0.
+  EXPECT_NEAR(m.anchors[0].position.head<2>().norm(), 0.0, 1e-12);
+  EXPECT_EQ(m.rawlog, (dir / "log.rawlog").string());  // relative to the manifest
+}
+
+TEST(Manifest, UnknownKeyNamesFileAndLine) {
+  const auto dir = test::scratchDir();
+  const auto path = writeText(dir / "m.ini", minimalManifest("beacon_radius = 3\n"));
+  expectErrorMentions<InputError>([&] { data::loadManifest(path, ""); },
+                                  {path + ":9", "unknown key 'beacon_radius'"});
+}
+
+TEST(Manifest, MissingAnchorsAndIncompleteAnchor) {
+  const auto dir = test::scratchDir();
+  const auto none = writeText(dir / "none.ini", "[dataset]\nrawlog = x.rawlog\n");
+  expectErrorMentions<InputError>([&] { data::loadManifest(none, ""); }, {none, "no anchors"});
+  const auto partial = writeText(
+      dir / "partial.ini", minimalManifest("beacon_002_ID = 2\nbeacon_002_X = 1\n"));
+  expectErrorMentions<InputError>([&] { data::loadManifest(partial, ""); },
+                                  {partial, "anchor 002 lacks key 'beacon_002_Y'"});
+}
+
+TEST(Manifest, MalformedLinesAndValues) {
+  const auto dir = test::scratchDir();
+  const auto bad_line = writeText(dir / "a.ini", "[dataset]\nrawlog log.rawlog\n");
+  expectErrorMentions<InputError>([&] { data::loadManifest(bad_line, ""); },
+                                  {bad_line + ":2", "expected 'key = value'"});
+  const auto bad_number = writeText(dir / "b.ini", minimalManifest("beacon_002_ID = 2\n"
+      "beacon_002_X = one\nbeacon_002_Y = 0\nbeacon_002_Z = 0\n"));
+  expectErrorMentions<InputError>([&] { data::loadManifest(bad_number, ""); },
+                                  {bad_number + ":10", "beacon_002_X", "'one'"});
+  const auto needs_data = writeText(dir / "c.ini", "[dataset]\nrawlog = ${DATA}/x.rawlog\n");
+  expectErrorMentions<InputError>([&] { data::loadManifest(needs_data, ""); },
+                                  {needs_data + ":2", "UWBLOC_DATA_DIR"});
+}
+
+TEST(Anchors, CsvWithHeaderAndMalformedRow) {
+  const auto dir = test::scratchDir();
+  const auto good = writeText(dir / "a.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2.1\n");
+  const auto anchors = data::loadAnchorsCsv(good);
+  ASSERT_EQ(anchors.size(), 2u);
+  EXPECT_DOUBLE_EQ(anchors[1].position.z(), 2.1);
+  const auto bad = writeText(dir / "b.csv", "id,x,y,z\n1,0,0,2\n2,6,zero,2.1\n");
+  expectErrorMentions<InputError>([&] { data::loadAnchorsCsv(bad); },
+                                  {bad + ":3", "field 'y'", "'zero'"});
+  const auto short_row = writeText(dir / "c.csv", "1,0,0\n");
+  expectErrorMentions<InputError>([&] { data::loadAnchorsCsv(short_row); },
+                                  {short_row + ":1", "expected 4 fields"});
+}
+
+TEST(GroundTruth, ReadersAndErrors) {
+  const auto dir = test::scratchDir();
+  const auto step = writeText(dir / "s.txt", "0 0 0 0\n1 1.0 2.0 0.5\n");
+  const auto s = data::readGroundTruth(step, data::GroundTruthFormat::kStepXyPhi, {10.0, 11.0});
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_DOUBLE_EQ(s[1].t, 11.0);
+  EXPECT_DOUBLE_EQ(s[1].pose.y(), 2.0);
+  expectErrorMentions<InputError>(
+      [&] { data::readGroundTruth(step, data::GroundTruthFormat::kStepXyPhi, {10.0}); },
+      {step + ":2", "not a step of the rawlog"});
+  const auto tum = writeText(dir / "t.tum", "# t x y z qx qy qz qw\n5.0 1 2 0 0 0 0.7071067811865476 0.7071067811865476\n");
+  const auto t = data::readGroundTruth(tum, data::GroundTruthFormat::kTum);
+  EXPECT_NEAR(t[0].pose.z(), M_PI / 2, 1e-12);
+  const auto back = writeText(dir / "b.txt", "2 0 0 0\n1 0 0 0\n");
+  expectErrorMentions<InputError>(
+      [&] { data::readGroundTruth(back, data::GroundTruthFormat::kTimeXyPhi); },
+      {back + ":2", "time goes backwards"});
+  const auto bad = writeText(dir / "c.txt", "2 0 0 0\n3 0 x 0\n");
+  expectErrorMentions<InputError>(
+      [&] { data::readGroundTruth(bad, data::GroundTruthFormat::kTimeXyPhi); },
+      {bad + ":2", "field 'y'"});
+}
+
+TEST(Rawlog, DemoStreamMatchesTheKnownLayout) {
+  const auto rec = data::readRawlog(test::kDemoRawlog);
+  EXPECT_EQ(rec.step_times.size(), 342u);  // one per action + sensory-frame pair
+  EXPECT_EQ(rec.counts.at("beacon_observations"), 339);
+  EXPECT_EQ(rec.counts.at("scans"), 343);
+  EXPECT_EQ(rec.counts.at("timestamp_from_frame"), 339);  // the beacon observations carry 0
+  long ranges = 0, odometry = 0;
+  double last = -1e300;
+  for (const auto& e : rec.events) {
+    ASSERT_GE(loc::eventTime(e), last);
+    last = loc::eventTime(e);
+    if (const auto* r = std::get_if<uwb::Range>(&e)) {
+      ++ranges;
+      EXPECT_NEAR(r->tag_on_robot.z(), 1.12, 1e-6);
+      EXPECT_NEAR(r->tag_on_robot.x(), 0.16, 1e-6);
+    }
+    odometry += std::holds_alternative<loc::OdometryIncrement>(e);
+  }
+  EXPECT_EQ(ranges, 3 * 339);
+  EXPECT_EQ(odometry, 343);
+}
+
+TEST(Rawlog, WriteThenReadRoundTrip) {
+  const auto dir = test::scratchDir();
+  std::vector<loc::Event> events;
+  for (int k = 0; k < 20; ++k) {
+    const double t = 1.7e9 + 0.1 * k;
+    for (int a = 1; a <= 3; ++a) {
+      uwb::Range r;
+      r.t = t;
+      r.anchor_id = a;
+      r.range = 2.0 + 0.25 * a + 0.01 * k;
+      r.tag_on_robot << 0.1, -0.05, 1.2;
+      events.emplace_back(r);
+    }
+    loc::OdometryIncrement o;
+    o.t = t + 0.05;
+    o.delta << 0.1, 0.0, 0.02;
+    events.emplace_back(o);
+  }
+  const auto path = (dir / "rt.rawlog").string();
+  data::writeRawlog(path, events);
+  const auto rec = data::readRawlog(path);
+  std::vector<uwb::Range> in, out;
+  for (const auto& e : events)
+    if (auto* r = std::get_if<uwb::Range>(&e)) in.push_back(*r);
+  long odometry = 0;
+  for (const auto& e : rec.events) {
+    if (auto* r = std::get_if<uwb::Range>(&e)) out.push_back(*r);
+    if (auto* o = std::get_if<loc::OdometryIncrement>(&e)) {
+      ++odometry;
+      EXPECT_NEAR(o->delta.x(), 0.1, 1e-9);
+      EXPECT_NEAR(o->delta.z(), 0.02, 1e-9);
+    }
+  }
+  EXPECT_EQ(odometry, 20);  // an origin reading is written first, so no increment is lost
+  ASSERT_EQ(in.size(), out.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    EXPECT_NEAR(in[i].t, out[i].t, 1e-6);
+    EXPECT_EQ(in[i].anchor_id, out[i].anchor_id);
+    EXPECT_NEAR(in[i].range, out[i].range, 1e-5);  // stored as float
+    EXPECT_NEAR((in[i].tag_on_robot - out[i].tag_on_robot).norm(), 0.0, 1e-6);
+  }
+}
+
+TEST(Rawlog, MissingTruncatedAndCorruptFilesNameTheFile) {
+  const auto dir = test::scratchDir();
+  const auto missing = (dir / "missing.rawlog").string();
+  expectErrorMentions<InputError>([&] { data::readRawlog(missing); }, {missing, "not found"});
+
+  // A truncated copy of the demo (gzip stream cut in the middle).
+  std::ifstream src(test::kDemoRawlog, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+  const auto truncated = (dir / "truncated.rawlog").string();
+  std::ofstream(truncated, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  expectErrorMentions<InputError>([&] { data::readRawlog(truncated); }, {truncated, "rawlog"});
+
+  // Garbage bytes inside the stream.
+  std::string corrupted = bytes;
+  for (size_t i = corrupted.size() / 3; i < corrupted.size() / 3 + 64; ++i) corrupted[i] ^= 0x5a;
+  const auto corrupt = (dir / "corrupt.rawlog").string();
+  std::ofstream(corrupt, std::ios::binary) << corrupted;
+  expectErrorMentions<InputError>([&] { data::readRawlog(corrupt); }, {corrupt, "rawlog"});
+
+  const auto text = writeText(dir / "text.rawlog", "this is not a rawlog\n");
+  expectErrorMentions<InputError>([&] { data::readRawlog(text); }, {text, "rawlog"});
+  const auto empty = writeText(dir / "empty.rawlog", "");
+  expectErrorMentions<InputError>([&] { data::readRawlog(empty); }, {empty, "rawlog"});
+}
+
+TEST(Dataset, DemoLoadsWithGroundTruthOnStepTimes) {
+  const auto ds = data::loadDataset(kManifest, "");
+  EXPECT_EQ(ds.ground_truth.size(), 342u);
+  EXPECT_NEAR(ds.duration(), 363.0, 1.0);
+  EXPECT_EQ(ds.anchors.size(), 3u);
+  // The GT starts at the origin at the time of the first step.
+  EXPECT_NEAR(ds.ground_truth.front().pose.norm(), 0.0, 1e-9);
+}
+
+TEST(Dataset, RangeFeatureSideFileErrors) {
+  const auto dir = test::scratchDir();
+  std::vector<loc::Event> events;
+  uwb::Range r;
+  r.t = 12.5;
+  r.anchor_id = 3;
+  r.range = 4.0;
+  events.emplace_back(r);
+  const auto good = writeText(dir / "f.csv", "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
+                                             "12.500000,3,4.0,-80.1,-82.5\n");
+  EXPECT_EQ(data::attachRangeFeatures(good, events), 1);
+  EXPECT_DOUBLE_EQ(*std::get<uwb::Range>(events[0]).fp_power_dbm, -82.5);
+  const auto bad = writeText(dir / "g.csv", "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
+                                            "12.5,3,4.0,-80.1\n");
+  expectErrorMentions<InputError>([&] { data::attachRangeFeatures(bad, events); },
+                                  {bad + ":2", "expected 5 fields"});
+}

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 
@@ -24,6 +25,36 @@ struct FeatureRow {
 };
 
 }  // namespace
+
+TwrFile readHanyangStatic(const std::string& path) {
+  TwrFile out;
+  std::vector<int> col;  // indices of Distance, poll_tx, poll_rx, resp_tx, resp_rx
+  const char* names[] = {"Distance", "poll_tx_ts", "poll_rx_ts", "resp_tx_ts", "resp_rx_ts"};
+  forEachRow(path, [&](int line, const std::vector<std::string>& f) {
+    if (col.empty()) {
+      for (const char* name : names) {
+        const auto it = std::find(f.begin(), f.end(), name);
+        if (it == f.end()) throwInputError(path, line, std::string("missing column '") + name + "'");
+        col.push_back(static_cast<int>(it - f.begin()));
+      }
+      return;
+    }
+    double v[5];
+    for (int i = 0; i < 5; ++i) {
+      const auto c = static_cast<size_t>(col[static_cast<size_t>(i)]);
+      char* end = nullptr;
+      v[i] = c < f.size() ? std::strtod(f[c].c_str(), &end) : NAN;
+      if (c >= f.size() || f[c].empty() || end != f[c].c_str() + f[c].size() ||
+          !std::isfinite(v[i])) {
+        ++out.incomplete_rows;
+        return;
+      }
+    }
+    out.exchanges.push_back({static_cast<int64_t>(v[1]), static_cast<int64_t>(v[2]),
+                             static_cast<int64_t>(v[3]), static_cast<int64_t>(v[4]), v[0]});
+  });
+  return out;
+}
 
 ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
                             const HanyangImportParams& params) {

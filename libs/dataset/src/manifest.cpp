@@ -1,6 +1,8 @@
 #include "uwbloc/dataset/manifest.hpp"
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -103,7 +105,10 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
                                          ini.lineOf("anchors", "anchors_csv")));
   std::set<std::string> indices;
   for (const auto& key : ini.keys("anchors")) {
-    if (key.rfind("beacon_", 0) == 0 && key.size() > 10) indices.insert(key.substr(7, 3));
+    // MRPT's form: beacon_NNN_{ID,X,Y,Z} with a three-digit index.
+    if (key.size() > 11 && key.rfind("beacon_", 0) == 0 && key[10] == '_' &&
+        std::all_of(key.begin() + 7, key.begin() + 10, [](char c) { return std::isdigit(c); }))
+      indices.insert(key.substr(7, 3));
   }
   for (const auto& idx : indices) {
     const std::string base = "beacon_" + idx + "_";

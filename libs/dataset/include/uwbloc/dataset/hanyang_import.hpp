@@ -11,7 +11,9 @@
 // in dataset.hpp) and dataset.ini, the manifest tying them together.
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace uwbloc::data {
 
@@ -25,6 +27,22 @@ struct ImportSummary {
   long anchors = 0;
   long ground_truth_rows = 0;
 };
+
+/// One two-way-ranging exchange of a Hanyang static file (static/{LOS,NLOS}/height_*/Nm.csv):
+/// raw DW1000 timestamps (stored as wrapped signed 32-bit numbers) and the device's distance.
+struct TwrExchange {
+  int64_t poll_tx = 0, poll_rx = 0, resp_tx = 0, resp_rx = 0;  ///< DW1000 ticks
+  double device_distance = 0.0;                                ///< the file's Distance [m]
+};
+
+struct TwrFile {
+  std::vector<TwrExchange> exchanges;
+  long incomplete_rows = 0;  ///< rows with an empty or non-numeric timestamp (skipped, counted)
+};
+
+/// Reads the raw timestamps and the device distance of a static file. Throws InputError naming
+/// the file when a needed column is missing.
+TwrFile readHanyangStatic(const std::string& path);
 
 ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
                             const HanyangImportParams& params = {});

@@ -14,9 +14,10 @@ namespace uwbloc::loc {
 struct UwbKfParams {
   RangeFrontEndParams front;
   double epoch_window = 0.15;   ///< ranges within this span form one epoch [s]
-  std::string solver = "ls";    ///< multilateration for the measurement: ls, gn or chan
-  double accel_psd = 0.5;       ///< q, white-acceleration spectral density [m^2/s^3]
-  double velocity_tau = 0.0;    ///< velocity correlation time [s]; 0 = constant velocity
+  std::string solver = "gn";    ///< multilateration for the measurement: ls (the greenhouse
+                                ///< paper), gn or chan
+  double accel_psd = 0.1;       ///< q, white-acceleration spectral density [m^2/s^3]
+  double velocity_tau = 5.0;    ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 13.8;           ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
   int max_gated = 5;            ///< consecutive gated fixes before re-initialising
   double init_residual = 0.5;   ///< largest residual norm of a fix used to (re)initialise [m]
