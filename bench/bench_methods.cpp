@@ -9,8 +9,8 @@
 namespace {
 
 const uwbloc::data::Dataset& demo() {
-  static const auto ds = uwbloc::data::loadDataset(
-      std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
+  static const auto ds =
+      uwbloc::data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
   return ds;
 }
 

@@ -21,7 +21,8 @@ inline data::Dataset makeSquareLoop(uint64_t seed, double sigma = 0.1, double du
     const double s = std::fmod(0.5 * t, 16.0);
     const int side = static_cast<int>(s / 4.0);
     const double u = s - 4.0 * side;
-    const Eigen::Vector3d corners[4] = {{2, 2, 0}, {6, 2, M_PI / 2}, {6, 6, M_PI}, {2, 6, -M_PI / 2}};
+    const Eigen::Vector3d corners[4] = {
+        {2, 2, 0}, {6, 2, M_PI / 2}, {6, 6, M_PI}, {2, 6, -M_PI / 2}};
     const Eigen::Vector3d c = corners[side];
     return Eigen::Vector3d(c.x() + u * std::cos(c.z()), c.y() + u * std::sin(c.z()), c.z());
   };
@@ -32,11 +33,9 @@ inline data::Dataset makeSquareLoop(uint64_t seed, double sigma = 0.1, double du
     ds.ground_truth.push_back({t, poseAt(t)});
     if (k > 0) {
       const Eigen::Vector3d now = poseAt(t);
-      const double c = std::cos(last.z()), s = std::sin(last.z());
-      const Eigen::Vector2d d = now.head<2>() - last.head<2>();
       loc::OdometryIncrement inc;
       inc.t = t;
-      inc.delta << c * d.x() + s * d.y(), -s * d.x() + c * d.y(), loc::wrapAngle(now.z() - last.z());
+      inc.delta = loc::relativePose(last, now);
       ds.events.emplace_back(inc);
       last = now;
     }

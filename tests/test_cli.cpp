@@ -1,10 +1,10 @@
 // The command line on bad input: a non-zero exit and a message naming the file (and line).
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
 #include <fstream>
-#include <sys/wait.h>
 
 #include "test_helpers.hpp"
 
@@ -36,7 +36,8 @@ void expectFailureMentioning(const Result& r, std::initializer_list<std::string>
 std::string manifestFor(const std::filesystem::path& dir, const std::string& rawlog,
                         const std::string& anchors = "anchors_csv = anchors.csv") {
   writeText(dir / "anchors.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2\n3,0,6,2\n");
-  return writeText(dir / "m.ini", "[dataset]\nrawlog = " + rawlog + "\n[anchors]\n" + anchors + "\n");
+  return writeText(dir / "m.ini",
+                   "[dataset]\nrawlog = " + rawlog + "\n[anchors]\n" + anchors + "\n");
 }
 
 }  // namespace
@@ -61,7 +62,8 @@ TEST(Cli, TruncatedRawlog) {
 TEST(Cli, ManifestWithUnknownKeyOrNoAnchors) {
   const auto dir = uwbloc::test::scratchDir();
   const auto m = manifestFor(dir, "x.rawlog", "anchors_csv = anchors.csv\nanchor_height = 2");
-  expectFailureMentioning(runCli("run -d " + m), {"error:", m + ":5", "unknown key 'anchor_height'"});
+  expectFailureMentioning(runCli("run -d " + m),
+                          {"error:", m + ":5", "unknown key 'anchor_height'"});
   const auto none = writeText(dir / "none.ini", "[dataset]\nrawlog = x.rawlog\n");
   expectFailureMentioning(runCli("run -d " + none), {"error:", none, "no anchors"});
 }

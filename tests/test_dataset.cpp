@@ -44,7 +44,8 @@ TEST(Manifest, DemoManifestMapsAnchorsIntoTheGroundTruthFrame) {
 
 TEST(Manifest, RotatedFrameTransform) {
   const auto dir = test::scratchDir();
-  const auto path = writeText(dir / "m.ini", minimalManifest("gt_origin_in_anchor_frame = 1 2 90\n"));
+  const auto path =
+      writeText(dir / "m.ini", minimalManifest("gt_origin_in_anchor_frame = 1 2 90\n"));
   const auto m = data::loadManifest(path, "");
   // p_gt = R(90)^T ((1,2) - (1,2)) = 0.
   EXPECT_NEAR(m.anchors[0].position.head<2>().norm(), 0.0, 1e-12);
@@ -62,8 +63,8 @@ TEST(Manifest, MissingAnchorsAndIncompleteAnchor) {
   const auto dir = test::scratchDir();
   const auto none = writeText(dir / "none.ini", "[dataset]\nrawlog = x.rawlog\n");
   expectErrorMentions<InputError>([&] { data::loadManifest(none, ""); }, {none, "no anchors"});
-  const auto partial = writeText(
-      dir / "partial.ini", minimalManifest("beacon_002_ID = 2\nbeacon_002_X = 1\n"));
+  const auto partial =
+      writeText(dir / "partial.ini", minimalManifest("beacon_002_ID = 2\nbeacon_002_X = 1\n"));
   expectErrorMentions<InputError>([&] { data::loadManifest(partial, ""); },
                                   {partial, "anchor 002 lacks key 'beacon_002_Y'"});
 }
@@ -73,8 +74,9 @@ TEST(Manifest, MalformedLinesAndValues) {
   const auto bad_line = writeText(dir / "a.ini", "[dataset]\nrawlog log.rawlog\n");
   expectErrorMentions<InputError>([&] { data::loadManifest(bad_line, ""); },
                                   {bad_line + ":2", "expected 'key = value'"});
-  const auto bad_number = writeText(dir / "b.ini", minimalManifest("beacon_002_ID = 2\n"
-      "beacon_002_X = one\nbeacon_002_Y = 0\nbeacon_002_Z = 0\n"));
+  const auto bad_number = writeText(
+      dir / "b.ini", minimalManifest("beacon_002_ID = 2\n"
+                                     "beacon_002_X = one\nbeacon_002_Y = 0\nbeacon_002_Z = 0\n"));
   expectErrorMentions<InputError>([&] { data::loadManifest(bad_number, ""); },
                                   {bad_number + ":10", "beacon_002_X", "'one'"});
   const auto needs_data = writeText(dir / "c.ini", "[dataset]\nrawlog = ${DATA}/x.rawlog\n");
@@ -106,7 +108,9 @@ TEST(GroundTruth, ReadersAndErrors) {
   expectErrorMentions<InputError>(
       [&] { data::readGroundTruth(step, data::GroundTruthFormat::kStepXyPhi, {10.0}); },
       {step + ":2", "not a step of the rawlog"});
-  const auto tum = writeText(dir / "t.tum", "# t x y z qx qy qz qw\n5.0 1 2 0 0 0 0.7071067811865476 0.7071067811865476\n");
+  const auto tum =
+      writeText(dir / "t.tum",
+                "# t x y z qx qy qz qw\n5.0 1 2 0 0 0 0.7071067811865476 0.7071067811865476\n");
   const auto t = data::readGroundTruth(tum, data::GroundTruthFormat::kTum);
   EXPECT_NEAR(t[0].pose.z(), M_PI / 2, 1e-12);
   const auto back = writeText(dir / "b.txt", "2 0 0 0\n1 0 0 0\n");
@@ -226,12 +230,14 @@ TEST(Dataset, RangeFeatureSideFileErrors) {
   r.anchor_id = 3;
   r.range = 4.0;
   events.emplace_back(r);
-  const auto good = writeText(dir / "f.csv", "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
-                                             "12.500000,3,4.0,-80.1,-82.5\n");
+  const auto good = writeText(dir / "f.csv",
+                              "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
+                              "12.500000,3,4.0,-80.1,-82.5\n");
   EXPECT_EQ(data::attachRangeFeatures(good, events), 1);
   EXPECT_DOUBLE_EQ(*std::get<uwb::Range>(events[0]).fp_power_dbm, -82.5);
-  const auto bad = writeText(dir / "g.csv", "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
-                                            "12.5,3,4.0,-80.1\n");
+  const auto bad = writeText(dir / "g.csv",
+                             "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
+                             "12.5,3,4.0,-80.1\n");
   expectErrorMentions<InputError>([&] { data::attachRangeFeatures(bad, events); },
                                   {bad + ":2", "expected 5 fields"});
 }

@@ -69,8 +69,7 @@ TEST_P(EveryMethod, RejectsBadMeasurementsAndNeverEmitsNaN) {
       EXPECT_GT(rej.count(reason), 0u) << c.spec << " did not count " << reason;
   }
   const auto errors = eval::associate(run.trajectory, ds.ground_truth);
-  EXPECT_LT(eval::computeMetrics(errors, run.trajectory, ds.ground_truth).rmse_2d,
-            c.max_rmse * 1.5)
+  EXPECT_LT(eval::computeMetrics(errors, run.trajectory, ds.ground_truth).rmse_2d, c.max_rmse * 1.5)
       << c.spec;
 }
 

@@ -56,10 +56,10 @@ TEST(IncrementQueue, AllowsLargerStepsAfterAGap) {
 
 TEST(ChiSquare, GatesNormalisedResidual) {
   const ChiSquareGate gate(5.0);
-  EXPECT_TRUE(gate.accept(2.0, 1.0));    // 4 <= 5
-  EXPECT_FALSE(gate.accept(3.0, 1.0));   // 9 > 5
-  EXPECT_TRUE(gate.accept(0.3, 0.02));   // 4.5
-  EXPECT_FALSE(gate.accept(1.0, 0.0));   // no variance: cannot judge
+  EXPECT_TRUE(gate.accept(2.0, 1.0));   // 4 <= 5
+  EXPECT_FALSE(gate.accept(3.0, 1.0));  // 9 > 5
+  EXPECT_TRUE(gate.accept(0.3, 0.02));  // 4.5
+  EXPECT_FALSE(gate.accept(1.0, 0.0));  // no variance: cannot judge
   EXPECT_FALSE(gate.accept(NAN, 1.0));
 }
 

@@ -26,11 +26,11 @@ struct Geometry {
 
 std::vector<Geometry> geometries() {
   return {
-      {{{0, 0}, {6, 0}, {6, 6}, {0, 6}}, {1.3, 4.2}},                 // greenhouse square
-      {{{0, 0}, {0, 8}, {8, 0}}, {2.5, 2.5}},                           // PF-IBAS room
-      {{{0, 0}, {7, 0}, {0, 5}}, {6.0, 4.0}},                           // AGV room, corner
+      {{{0, 0}, {6, 0}, {6, 6}, {0, 6}}, {1.3, 4.2}},                    // greenhouse square
+      {{{0, 0}, {0, 8}, {8, 0}}, {2.5, 2.5}},                            // PF-IBAS room
+      {{{0, 0}, {7, 0}, {0, 5}}, {6.0, 4.0}},                            // AGV room, corner
       {{{-1.79, -4.55}, {4.71, -4.33}, {4.7023, 0.3185}}, {10.0, 2.0}},  // MRPT demo, outside
-      {{{0, 0}, {10, 0}, {10, 10}, {0, 10}, {5, 12}}, {-3.0, 7.0}},     // five, outside hull
+      {{{0, 0}, {10, 0}, {10, 10}, {0, 10}, {5, 12}}, {-3.0, 7.0}},      // five, outside hull
   };
 }
 
@@ -75,8 +75,9 @@ TEST(Multilateration, GaussNewtonReachesCramerRaoBound) {
   }
   const double gn = std::sqrt(se_gn / trials), ls = std::sqrt(se_ls / trials),
                chan = std::sqrt(se_chan / trials);
-  std::printf("[ CRLB     ] sqrt(CRLB) %.4f m; RMSE GN %.4f (%.3f), LS %.4f (%.3f), Chan %.4f (%.3f)\n",
-              bound, gn, gn / bound, ls, ls / bound, chan, chan / bound);
+  std::printf(
+      "[ CRLB     ] sqrt(CRLB) %.4f m; RMSE GN %.4f (%.3f), LS %.4f (%.3f), Chan %.4f (%.3f)\n",
+      bound, gn, gn / bound, ls, ls / bound, chan, chan / bound);
   EXPECT_NEAR(gn / bound, 1.0, 0.10);
   EXPECT_NEAR(chan / bound, 1.0, 0.10);
 }
@@ -95,7 +96,7 @@ TEST(Multilateration, DegenerateGeometryIsReported) {
 }
 
 TEST(RangeModel, HeightProjection) {
-  EXPECT_DOUBLE_EQ(*projectToPlane(5.0, 3.0), 4.0);   // eq. (3), 3-4-5
+  EXPECT_DOUBLE_EQ(*projectToPlane(5.0, 3.0), 4.0);  // eq. (3), 3-4-5
   EXPECT_DOUBLE_EQ(*projectToPlane(3.0, -3.0), 0.0);
   EXPECT_FALSE(projectToPlane(2.0, 3.0).has_value());  // shorter than the height difference
   EXPECT_FALSE(projectToPlane(NAN, 1.0).has_value());
@@ -103,7 +104,7 @@ TEST(RangeModel, HeightProjection) {
 
 TEST(RangeModel, JacobianMatchesNumeric) {
   const Eigen::Vector3d anchor(4.0, -2.0, 2.1), tag(0.16, 0.05, 1.12);
-  for (const Eigen::Vector3d pose : {Eigen::Vector3d(1.0, 2.0, 0.3), Eigen::Vector3d(-3, 0.5, -2.8),
+  for (const Eigen::Vector3d& pose : {Eigen::Vector3d(1.0, 2.0, 0.3), Eigen::Vector3d(-3, 0.5, -2.8),
                                      Eigen::Vector3d(3.9, -2.1, 1.57)}) {
     Eigen::RowVector3d j;
     const double h = predictRange(pose, tag, anchor, &j);
@@ -111,7 +112,8 @@ TEST(RangeModel, JacobianMatchesNumeric) {
     for (int k = 0; k < 3; ++k) {
       Eigen::Vector3d d = Eigen::Vector3d::Zero();
       d(k) = 1e-6;
-      const double num = (predictRange(pose + d, tag, anchor) - predictRange(pose - d, tag, anchor)) / 2e-6;
+      const double num =
+          (predictRange(pose + d, tag, anchor) - predictRange(pose - d, tag, anchor)) / 2e-6;
       EXPECT_NEAR(j(k), num, 1e-6) << "component " << k;
     }
   }

@@ -64,8 +64,7 @@ TEST(Twr, ReproducesHanyangDeviceDistance) {
       residuals.push_back(x.device_distance - uwb::singleSidedTwr(round, reply));
     }
     ASSERT_GT(residuals.size(), 50u) << entry.path();
-    const double mean =
-        std::accumulate(residuals.begin(), residuals.end(), 0.0) / residuals.size();
+    const double mean = std::accumulate(residuals.begin(), residuals.end(), 0.0) / residuals.size();
     double var = 0.0;
     for (double r : residuals) var += (r - mean) * (r - mean);
     const double sd = std::sqrt(var / (residuals.size() - 1));
@@ -78,8 +77,9 @@ TEST(Twr, ReproducesHanyangDeviceDistance) {
   double var = 0.0;
   for (double r : pooled) var += (r - mean) * (r - mean);
   const double pooled_sd = std::sqrt(var / (pooled.size() - 1));
-  std::printf("[ TWR      ] %d files, %zu exchanges, %ld incomplete rows skipped; per-file residual "
-              "std <= %.4f m; one constant for all files: %.3f m, residual std %.4f m\n",
-              files, pooled.size(), incomplete, worst_std, mean, pooled_sd);
+  std::printf(
+      "[ TWR      ] %d files, %zu exchanges, %ld incomplete rows skipped; per-file residual "
+      "std <= %.4f m; one constant for all files: %.3f m, residual std %.4f m\n",
+      files, pooled.size(), incomplete, worst_std, mean, pooled_sd);
   EXPECT_LT(pooled_sd, 0.06);
 }

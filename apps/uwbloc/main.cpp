@@ -1,9 +1,10 @@
 // uwbloc: replay recorded UWB / LiDAR / odometry data through localisation methods and score
 // them against ground truth. Thin: it parses arguments and calls the libraries.
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
-#include <unistd.h>
 
 #include "uwbloc/dataset/data_dir.hpp"
 #include "uwbloc/dataset/dataset.hpp"
@@ -24,8 +25,7 @@ std::vector<std::string> splitMethods(const std::string& list) {
   std::istringstream in(list);
   while (std::getline(in, item, ',')) {
     if (item.empty()) continue;
-    if (item.find('=') != std::string::npos && item.find(':') == std::string::npos &&
-        !out.empty())
+    if (item.find('=') != std::string::npos && item.find(':') == std::string::npos && !out.empty())
       out.back() += "," + item;
     else
       out.push_back(item);
@@ -40,15 +40,15 @@ loc::ParamSet extraParams(const std::string& method_name, const std::string& con
   loc::ParamSet extra;
   if (!config_path.empty()) {
     const auto ini = data::IniFile::load(config_path);
-    for (const auto& key : ini.keys(method_name))
-      extra.set(key, *ini.get(method_name, key));
+    for (const auto& key : ini.keys(method_name)) extra.set(key, *ini.get(method_name, key));
   }
   for (const auto& s : sets) {
     const auto eq = s.find('=');
     const auto dot = s.rfind('.', eq);
     if (eq == std::string::npos || dot == std::string::npos)
       throw loc::ParamError("--set expects method.key=value, got '" + s + "'");
-    if (s.substr(0, dot) == method_name) extra.set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
+    if (s.substr(0, dot) == method_name)
+      extra.set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
   }
   return extra;
 }
@@ -128,8 +128,9 @@ int main(int argc, char** argv) {
   auto* compare = app.add_subcommand(
       "compare", "Run several methods on one dataset and print the comparison table");
   addCommon(compare, cmp_opt);
-  compare->add_option("--methods,-m", methods,
-                      "comma-separated method specs, or 'all' for every registered method")
+  compare
+      ->add_option("--methods,-m", methods,
+                   "comma-separated method specs, or 'all' for every registered method")
       ->capture_default_str();
   compare->add_option("--repeat", cmp_opt.repeat, "runs per method (seeds seed, seed+1, ...)")
       ->capture_default_str()
@@ -141,9 +142,10 @@ int main(int argc, char** argv) {
   auto* import = app.add_subcommand(
       "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
   import->add_option("format", format, "source format: hanyang")->required();
-  import->add_option("source", source,
-                     "source folder (as given, or relative to the data directory), e.g. "
-                     "hanyang_outdoor_uwb/LOS_TrajA_Case1")
+  import
+      ->add_option("source", source,
+                   "source folder (as given, or relative to the data directory), e.g. "
+                   "hanyang_outdoor_uwb/LOS_TrajA_Case1")
       ->required();
   import->add_option("--out,-o", import_out, "output folder")->required();
   import->add_option("--data-dir", import_data_dir, "folder of public datasets");
@@ -161,8 +163,7 @@ int main(int argc, char** argv) {
         std::cerr << "error: unknown import format '" << format << "' (known: hanyang)\n";
         return 2;
       }
-      const std::string src =
-          data::resolveInputPath(source, data::resolveDataDir(import_data_dir));
+      const std::string src = data::resolveInputPath(source, data::resolveDataDir(import_data_dir));
       const auto s = data::importHanyang(src, import_out, hanyang);
       std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors and "
                 << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest << "\n";

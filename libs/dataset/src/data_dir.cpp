@@ -11,7 +11,7 @@ std::string resolveDataDir(const std::string& flag) {
   if (!flag.empty()) return flag;
   if (const char* env = std::getenv("UWBLOC_DATA_DIR"); env && *env) return env;
   for (const fs::path& candidate : {fs::path(UWBLOC_SOURCE_DIR) / ".." / "shared" / "datasets",
-                                   fs::current_path() / ".." / "shared" / "datasets"}) {
+                                    fs::current_path() / ".." / "shared" / "datasets"}) {
     std::error_code ec;
     if (fs::is_directory(candidate, ec)) return fs::canonical(candidate, ec).string();
   }

@@ -59,8 +59,8 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
     ds.counts["ranges_with_features"] = attachRangeFeatures(ds.manifest.range_features, ds.events);
 
   if (!ds.manifest.ground_truth.empty())
-    ds.ground_truth = readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format,
-                                      rec.step_times);
+    ds.ground_truth =
+        readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format, rec.step_times);
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
   return ds;

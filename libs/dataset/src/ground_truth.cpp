@@ -17,8 +17,7 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
       case GroundTruthFormat::kStepXyPhi: {
         if (f.size() < 4) throwInputError(path, line, "expected 'step x y phi'");
         const double step = parseNumber(f[0], path, line, "step");
-        if (step < 0 || step != std::floor(step) ||
-            step >= static_cast<double>(step_times.size()))
+        if (step < 0 || step != std::floor(step) || step >= static_cast<double>(step_times.size()))
           throwInputError(path, line,
                           "step " + f[0] + " is not a step of the rawlog (it has " +
                               std::to_string(step_times.size()) + ")");
@@ -44,12 +43,11 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
             std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
         break;
       }
-      case GroundTruthFormat::kNone: throwInputError(path, line, "no ground-truth format given");
+      case GroundTruthFormat::kNone:
+        throwInputError(path, line, "no ground-truth format given");
     }
-    if (!p.pose.allFinite() || !std::isfinite(p.t))
-      throwInputError(path, line, "non-finite value");
-    if (!out.empty() && p.t < out.back().t)
-      throwInputError(path, line, "time goes backwards");
+    if (!p.pose.allFinite() || !std::isfinite(p.t)) throwInputError(path, line, "non-finite value");
+    if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
     out.push_back(p);
   });
   if (out.empty()) throwInputError(path, 0, "no ground-truth rows");
@@ -60,8 +58,8 @@ std::string formatTum(const std::vector<TimedPose>& poses) {
   std::string out;
   char buf[256];
   for (const auto& p : poses) {
-    std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.t, p.pose.x(),
-                  p.pose.y(), std::sin(p.pose.z() / 2.0), std::cos(p.pose.z() / 2.0));
+    std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.t, p.pose.x(), p.pose.y(),
+                  std::sin(p.pose.z() / 2.0), std::cos(p.pose.z() / 2.0));
     out += buf;
   }
   return out;

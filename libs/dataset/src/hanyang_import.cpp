@@ -34,7 +34,8 @@ TwrFile readHanyangStatic(const std::string& path) {
     if (col.empty()) {
       for (const char* name : names) {
         const auto it = std::find(f.begin(), f.end(), name);
-        if (it == f.end()) throwInputError(path, line, std::string("missing column '") + name + "'");
+        if (it == f.end())
+          throwInputError(path, line, std::string("missing column '") + name + "'");
         col.push_back(static_cast<int>(it - f.begin()));
       }
       return;

@@ -27,10 +27,14 @@ GroundTruthFormat parseGroundTruthFormat(const std::string& text) {
 
 const char* toString(GroundTruthFormat f) {
   switch (f) {
-    case GroundTruthFormat::kStepXyPhi: return "step_xyphi";
-    case GroundTruthFormat::kTimeXyPhi: return "time_xyphi";
-    case GroundTruthFormat::kTum: return "tum";
-    case GroundTruthFormat::kNone: return "none";
+    case GroundTruthFormat::kStepXyPhi:
+      return "step_xyphi";
+    case GroundTruthFormat::kTimeXyPhi:
+      return "time_xyphi";
+    case GroundTruthFormat::kTum:
+      return "tum";
+    case GroundTruthFormat::kNone:
+      return "none";
   }
   return "none";
 }
@@ -61,9 +65,9 @@ std::string resolvePath(const std::string& value, const std::string& manifest_di
   const std::string prefix = "${DATA}/";
   if (value.rfind(prefix, 0) == 0) {
     if (data_dir.empty())
-      throwInputError(manifest, line,
-                      "path '" + value +
-                          "' needs the data directory: set UWBLOC_DATA_DIR or --data-dir");
+      throwInputError(
+          manifest, line,
+          "path '" + value + "' needs the data directory: set UWBLOC_DATA_DIR or --data-dir");
     return (fs::path(data_dir) / value.substr(prefix.size())).string();
   }
   const fs::path p(value);
@@ -88,9 +92,8 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   m.map = pathKey("map");
   m.range_features = pathKey("range_features");
   try {
-    m.ground_truth_format = parseGroundTruthFormat(ini.getString("dataset", "ground_truth_format",
-                                                                 m.ground_truth.empty() ? "none"
-                                                                                        : ""));
+    m.ground_truth_format = parseGroundTruthFormat(
+        ini.getString("dataset", "ground_truth_format", m.ground_truth.empty() ? "none" : ""));
   } catch (const InputError& e) {
     throwInputError(path, ini.lineOf("dataset", "ground_truth_format"), e.what());
   }
@@ -101,8 +104,8 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   // Anchors: a CSV and/or MRPT's beacon_NNN_* keys.
   std::vector<uwb::Anchor> anchors;
   if (const auto csv = ini.get("anchors", "anchors_csv"))
-    anchors = loadAnchorsCsv(resolvePath(*csv, dir, data_dir, path,
-                                         ini.lineOf("anchors", "anchors_csv")));
+    anchors = loadAnchorsCsv(
+        resolvePath(*csv, dir, data_dir, path, ini.lineOf("anchors", "anchors_csv")));
   std::set<std::string> indices;
   for (const auto& key : ini.keys("anchors")) {
     // MRPT's form: beacon_NNN_{ID,X,Y,Z} with a three-digit index.
@@ -138,8 +141,7 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
     }
   }
   if (anchors.empty())
-    throwInputError(path, 0,
-                    "no anchors: give [anchors] anchors_csv or beacon_NNN_ID/X/Y/Z keys");
+    throwInputError(path, 0, "no anchors: give [anchors] anchors_csv or beacon_NNN_ID/X/Y/Z keys");
   m.anchors = anchors;
 
   if (ini.get("tag", "height")) m.tag_height = ini.getDouble("tag", "height");

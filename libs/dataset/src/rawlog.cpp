@@ -1,7 +1,5 @@
 #include "uwbloc/dataset/rawlog.hpp"
 
-#include <algorithm>
-#include <filesystem>
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/obs/CActionCollection.h>
@@ -11,6 +9,9 @@
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/serialization/CArchive.h>
+
+#include <algorithm>
+#include <filesystem>
 
 #include "uwbloc/dataset/errors.hpp"
 
@@ -68,14 +69,9 @@ class Converter {
     } else if (const auto* o = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs)) {
       const Eigen::Vector3d pose(o->odometry.x(), o->odometry.y(), o->odometry.phi());
       if (last_odometry_) {
-        // Increment in the frame of the previous reading: (-prev) (+) current.
-        const Eigen::Vector3d& prev = *last_odometry_;
-        const double c = std::cos(prev.z()), sn = std::sin(prev.z());
-        const Eigen::Vector2d d = pose.head<2>() - prev.head<2>();
         loc::OdometryIncrement inc;
         inc.t = t;
-        inc.delta << c * d.x() + sn * d.y(), -sn * d.x() + c * d.y(),
-            loc::wrapAngle(pose.z() - prev.z());
+        inc.delta = loc::relativePose(*last_odometry_, pose);
         rec_.events.emplace_back(inc);
       }
       last_odometry_ = pose;
@@ -141,8 +137,7 @@ class Converter {
 
 Recording readRawlog(const std::string& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    throwInputError(path, 0, "rawlog not found");
+  if (!std::filesystem::is_regular_file(path, ec)) throwInputError(path, 0, "rawlog not found");
   mrpt::io::CFileGZInputStream in;
   if (!in.open(path)) throwInputError(path, 0, "cannot open rawlog");
   auto archive = mrpt::serialization::archiveFrom(in);
@@ -156,8 +151,7 @@ Recording readRawlog(const std::string& path) {
     } catch (const mrpt::serialization::CExceptionEOF&) {
       // A clean end of file: nothing of a next object was read.
       if (in.checkEOF()) break;
-      throwInputError(path, 0,
-                      "truncated rawlog after " + std::to_string(objects) + " objects");
+      throwInputError(path, 0, "truncated rawlog after " + std::to_string(objects) + " objects");
     } catch (const std::exception& e) {
       throwInputError(path, 0,
                       "corrupt or truncated rawlog after " + std::to_string(objects) +

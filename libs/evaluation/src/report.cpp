@@ -27,15 +27,10 @@ nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 }  // namespace
 
 std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory) {
-  std::string out;
-  out.reserve(trajectory.size() * 80);
-  char buf[256];
-  for (const auto& p : trajectory) {
-    std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.t, p.pose.x(),
-                  p.pose.y(), std::sin(p.pose.z() / 2.0), std::cos(p.pose.z() / 2.0));
-    out += buf;
-  }
-  return out;
+  std::vector<data::TimedPose> poses;
+  poses.reserve(trajectory.size());
+  for (const auto& p : trajectory) poses.push_back({p.t, p.pose});
+  return data::formatTum(poses);
 }
 
 std::string fileLabel(const std::string& spec) {
@@ -102,8 +97,8 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
         << m.metrics.coverage << "," << m.metrics.rmse_x << "," << m.metrics.rmse_y << ","
         << m.metrics.rmse_2d << "," << m.rmse_2d_std << "," << m.metrics.mae_2d << ","
         << m.metrics.median_2d << "," << m.metrics.p95_2d << "," << m.metrics.max_2d << ","
-        << m.ms_per_step << "," << m.realtime_factor << "," << totalRejected(m) << ","
-        << m.resets << "\n";
+        << m.ms_per_step << "," << m.realtime_factor << "," << totalRejected(m) << "," << m.resets
+        << "\n";
   }
   return out.str();
 }
@@ -173,12 +168,11 @@ void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
       << "repeat = " << info.repeat << "\n";
   cfg << "\n[dataset]\nname = " << dataset.name << "\nrawlog = " << dataset.manifest.rawlog
       << "\nground_truth = " << dataset.manifest.ground_truth
-      << "\nground_truth_format = " << data::toString(dataset.manifest.ground_truth_format)
-      << "\n";
+      << "\nground_truth_format = " << data::toString(dataset.manifest.ground_truth_format) << "\n";
   cfg << "\n[anchors]\n";
   for (const auto& a : dataset.anchors)
-    cfg << "# anchor " << a.id << " (map frame): " << a.position.x() << " " << a.position.y()
-        << " " << a.position.z() << "\n";
+    cfg << "# anchor " << a.id << " (map frame): " << a.position.x() << " " << a.position.y() << " "
+        << a.position.z() << "\n";
   for (const auto& m : methods) {
     cfg << "\n[" << m.spec << "]\n";
     for (const auto& p : m.parameters) cfg << p.key << " = " << p.value << "\n";

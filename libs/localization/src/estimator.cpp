@@ -10,6 +10,12 @@ Eigen::Vector3d composePose(const Eigen::Vector3d& pose, const Eigen::Vector3d& 
           wrapAngle(pose.z() + delta.z())};
 }
 
+Eigen::Vector3d relativePose(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
+  const double c = std::cos(from.z()), s = std::sin(from.z());
+  const Eigen::Vector2d d = to.head<2>() - from.head<2>();
+  return {c * d.x() + s * d.y(), -s * d.x() + c * d.y(), wrapAngle(to.z() - from.z())};
+}
+
 double wrapAngle(double a) {
   a = std::fmod(a + M_PI, 2.0 * M_PI);
   if (a <= 0.0) a += 2.0 * M_PI;
@@ -24,8 +30,7 @@ std::optional<PoseEstimate> Estimator::finish() { return guard(doFinish()); }
 
 std::optional<PoseEstimate> Estimator::guard(std::optional<PoseEstimate> estimate) {
   if (!estimate) return estimate;
-  if (estimate->pose.allFinite() && estimate->covariance.allFinite() &&
-      std::isfinite(estimate->t))
+  if (estimate->pose.allFinite() && estimate->covariance.allFinite() && std::isfinite(estimate->t))
     return estimate;
   countRejection("non_finite_estimate");
   ++stats_.resets;

@@ -31,14 +31,26 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
   return AcceptedRange{range, anchor->position, *planar};
 }
 
+std::optional<AcceptedRange> UwbEstimator::acceptRange(const Event& event) {
+  const auto* range = std::get_if<uwb::Range>(&event);
+  if (!range) return std::nullopt;
+  uwb::RejectReason reason{};
+  auto accepted = front_.accept(*range, &reason);
+  if (!accepted) {
+    countRejection(reason, range->anchor_id);
+    return std::nullopt;
+  }
+  ++stats_.accepted_ranges;
+  return accepted;
+}
+
 std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& r) {
   std::optional<std::vector<AcceptedRange>> closed;
   if (!open_.empty()) {
     const bool too_late = r.measurement.t - open_.front().measurement.t > window_;
-    const bool repeated =
-        std::any_of(open_.begin(), open_.end(), [&](const AcceptedRange& o) {
-          return o.measurement.anchor_id == r.measurement.anchor_id;
-        });
+    const bool repeated = std::any_of(open_.begin(), open_.end(), [&](const AcceptedRange& o) {
+      return o.measurement.anchor_id == r.measurement.anchor_id;
+    });
     if (too_late || repeated) {
       closed = std::move(open_);
       open_.clear();

@@ -12,8 +12,7 @@ namespace {
 MethodInfo multilaterationMethod(const std::string& name, const std::string& description,
                                  MultilaterationSolver solver) {
   return makeMethod<MultilaterationEstimator, MultilaterationParams>(
-      name, description,
-      [solver](const MultilaterationParams& p, const EstimatorContext& ctx) {
+      name, description, [solver](const MultilaterationParams& p, const EstimatorContext& ctx) {
         return std::make_unique<MultilaterationEstimator>(solver, p, ctx);
       });
 }

@@ -7,17 +7,28 @@ namespace uwbloc::uwb {
 
 const char* toString(RejectReason r) {
   switch (r) {
-    case RejectReason::kNonFinite: return "non_finite";
-    case RejectReason::kZero: return "zero_range";
-    case RejectReason::kNegative: return "negative_range";
-    case RejectReason::kBeyondMax: return "beyond_max_range";
-    case RejectReason::kBelowHeight: return "below_height_difference";
-    case RejectReason::kUnknownAnchor: return "unknown_anchor";
-    case RejectReason::kIncrement: return "increment_queue";
-    case RejectReason::kChiSquare: return "chi_square";
-    case RejectReason::kThreeSigma: return "three_sigma";
-    case RejectReason::kInnovation: return "innovation_gate";
-    case RejectReason::kTimeBackwards: return "time_backwards";
+    case RejectReason::kNonFinite:
+      return "non_finite";
+    case RejectReason::kZero:
+      return "zero_range";
+    case RejectReason::kNegative:
+      return "negative_range";
+    case RejectReason::kBeyondMax:
+      return "beyond_max_range";
+    case RejectReason::kBelowHeight:
+      return "below_height_difference";
+    case RejectReason::kUnknownAnchor:
+      return "unknown_anchor";
+    case RejectReason::kIncrement:
+      return "increment_queue";
+    case RejectReason::kChiSquare:
+      return "chi_square";
+    case RejectReason::kThreeSigma:
+      return "three_sigma";
+    case RejectReason::kInnovation:
+      return "innovation_gate";
+    case RejectReason::kTimeBackwards:
+      return "time_backwards";
   }
   return "unknown";
 }
@@ -44,8 +55,8 @@ bool IncrementQueueGate::accept(int anchor_id, double t, double range) {
   for (int j = 0; j < s.count; ++j) mean_abs += std::abs(s.increments[static_cast<size_t>(j)]);
   if (s.count > 0) mean_abs /= s.count;
   const double dt = std::max(0.0, t - s.last_t);
-  const double y = params_.zeta * mean_abs + params_.max_speed * dt + params_.noise_floor -
-                   std::abs(inc);
+  const double y =
+      params_.zeta * mean_abs + params_.max_speed * dt + params_.noise_floor - std::abs(inc);
   if (y > 0.0) {
     s.increments[static_cast<size_t>(s.head)] = inc;  // overwrites the increment of t-n+1
     s.head = (s.head + 1) % n;

@@ -7,10 +7,14 @@ namespace uwbloc::uwb {
 
 const char* toString(FixStatus s) {
   switch (s) {
-    case FixStatus::kOk: return "ok";
-    case FixStatus::kTooFewAnchors: return "too_few_anchors";
-    case FixStatus::kDegenerate: return "degenerate_geometry";
-    case FixStatus::kNoConvergence: return "no_convergence";
+    case FixStatus::kOk:
+      return "ok";
+    case FixStatus::kTooFewAnchors:
+      return "too_few_anchors";
+    case FixStatus::kDegenerate:
+      return "degenerate_geometry";
+    case FixStatus::kNoConvergence:
+      return "no_convergence";
   }
   return "unknown";
 }

@@ -13,8 +13,7 @@ double singleSidedTwr(double t_round_s, double t_reply_s, double antenna_delay_s
   return kSpeedOfLight * (t_round_s - t_reply_s - antenna_delay_s) / 2.0;
 }
 
-double doubleSidedTwr(double ra_s, double rb_s, double da_s, double db_s,
-                      double antenna_delay_s) {
+double doubleSidedTwr(double ra_s, double rb_s, double da_s, double db_s, double antenna_delay_s) {
   // Asymmetric DS-TWR: the clock-drift terms cancel to first order.
   const double tof = (ra_s * rb_s - da_s * db_s) / (ra_s + rb_s + da_s + db_s);
   return kSpeedOfLight * (tof - antenna_delay_s / 2.0);

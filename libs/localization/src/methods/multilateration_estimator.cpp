@@ -5,23 +5,16 @@ namespace uwbloc::loc {
 MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
                                                    const MultilaterationParams& params,
                                                    const EstimatorContext& context)
-    : solver_(solver),
+    : UwbEstimator(params.front, context.anchors),
+      solver_(solver),
       params_(params),
-      front_(params.front, context.anchors),
       epochs_(params.epoch_window) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
 }
 
 std::optional<PoseEstimate> MultilaterationEstimator::doProcess(const Event& event) {
-  const auto* range = std::get_if<uwb::Range>(&event);
-  if (!range) return std::nullopt;
-  uwb::RejectReason reason{};
-  const auto accepted = front_.accept(*range, &reason);
-  if (!accepted) {
-    countRejection(reason, range->anchor_id);
-    return std::nullopt;
-  }
-  ++stats_.accepted_ranges;
+  const auto accepted = acceptRange(event);
+  if (!accepted) return std::nullopt;
   if (auto epoch = epochs_.add(*accepted)) return solveEpoch(*epoch);
   return std::nullopt;
 }
@@ -36,9 +29,15 @@ std::optional<PoseEstimate> MultilaterationEstimator::solveEpoch(
   const auto planar = toPlanar(epoch, params_.front.sigma);
   uwb::Fix fix;
   switch (solver_) {
-    case MultilaterationSolver::kLinearLS: fix = uwb::solveLinearLS(planar); break;
-    case MultilaterationSolver::kGaussNewton: fix = uwb::solveGaussNewton(planar); break;
-    case MultilaterationSolver::kChan: fix = uwb::solveChan(planar); break;
+    case MultilaterationSolver::kLinearLS:
+      fix = uwb::solveLinearLS(planar);
+      break;
+    case MultilaterationSolver::kGaussNewton:
+      fix = uwb::solveGaussNewton(planar);
+      break;
+    case MultilaterationSolver::kChan:
+      fix = uwb::solveChan(planar);
+      break;
   }
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));

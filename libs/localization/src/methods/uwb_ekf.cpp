@@ -5,7 +5,9 @@
 namespace uwbloc::loc {
 
 UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
-    : params_(params), front_(params.front, context.anchors), init_epochs_(params.epoch_window) {
+    : UwbEstimator(params.front, context.anchors),
+      params_(params),
+      init_epochs_(params.epoch_window) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
 }
 
@@ -62,15 +64,8 @@ PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
 }
 
 std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
-  const auto* range = std::get_if<uwb::Range>(&event);
-  if (!range) return std::nullopt;
-  uwb::RejectReason reason{};
-  const auto accepted = front_.accept(*range, &reason);
-  if (!accepted) {
-    countRejection(reason, range->anchor_id);
-    return std::nullopt;
-  }
-  ++stats_.accepted_ranges;
+  const auto accepted = acceptRange(event);
+  if (!accepted) return std::nullopt;
 
   if (!initialised_) {
     // Start from the first epoch that multilaterates (Gauss-Newton).
@@ -96,10 +91,10 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
     return output(accepted->measurement.tag_on_robot);
   }
 
-  predict(range->t);
+  predict(accepted->measurement.t);
   double innovation = 0.0, s = 0.0;
   Eigen::RowVector4d hj;
-  const int id = range->anchor_id;
+  const int id = accepted->measurement.anchor_id;
   if (inGate(*accepted, &innovation, &hj, &s)) {
     gated_in_a_row_ = 0;
     auto q = quarantine_.find(id);

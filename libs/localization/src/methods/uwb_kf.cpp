@@ -5,23 +5,16 @@
 namespace uwbloc::loc {
 
 UwbKf::UwbKf(const UwbKfParams& params, const EstimatorContext& context)
-    : params_(params), front_(params.front, context.anchors), epochs_(params.epoch_window) {
+    : UwbEstimator(params.front, context.anchors), params_(params), epochs_(params.epoch_window) {
   if (params_.solver != "ls" && params_.solver != "gn" && params_.solver != "chan")
-    throw ParamError("uwb-kf: parameter 'solver' must be ls, gn or chan, got '" +
-                     params_.solver + "'");
+    throw ParamError("uwb-kf: parameter 'solver' must be ls, gn or chan, got '" + params_.solver +
+                     "'");
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
 }
 
 std::optional<PoseEstimate> UwbKf::doProcess(const Event& event) {
-  const auto* range = std::get_if<uwb::Range>(&event);
-  if (!range) return std::nullopt;
-  uwb::RejectReason reason{};
-  const auto accepted = front_.accept(*range, &reason);
-  if (!accepted) {
-    countRejection(reason, range->anchor_id);
-    return std::nullopt;
-  }
-  ++stats_.accepted_ranges;
+  const auto accepted = acceptRange(event);
+  if (!accepted) return std::nullopt;
   if (auto epoch = epochs_.add(*accepted)) return onEpoch(*epoch);
   return std::nullopt;
 }
@@ -91,8 +84,7 @@ std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epo
   const double heading = heading_.update(x_.tail<2>());
   PoseEstimate est;
   est.t = t_;
-  est.pose << robotFromTag(x_.head<2>(), epoch.front().measurement.tag_on_robot, heading),
-      heading;
+  est.pose << robotFromTag(x_.head<2>(), epoch.front().measurement.tag_on_robot, heading), heading;
   est.covariance.setZero();
   est.covariance.topLeftCorner<2, 2>() = p_.topLeftCorner<2, 2>();
   est.covariance(2, 2) = M_PI * M_PI;

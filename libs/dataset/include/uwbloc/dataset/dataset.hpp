@@ -14,10 +14,10 @@ namespace uwbloc::data {
 struct Dataset {
   Manifest manifest;
   std::string name;
-  std::vector<loc::Event> events;         ///< time-ordered
-  std::vector<uwb::Anchor> anchors;       ///< map/GT frame
-  std::vector<TimedPose> ground_truth;    ///< may be empty
-  std::map<std::string, long> counts;     ///< what the reader found
+  std::vector<loc::Event> events;       ///< time-ordered
+  std::vector<uwb::Anchor> anchors;     ///< map/GT frame
+  std::vector<TimedPose> ground_truth;  ///< may be empty
+  std::map<std::string, long> counts;   ///< what the reader found
   double start_time = 0.0;
   double end_time = 0.0;
   double duration() const { return end_time - start_time; }

@@ -27,8 +27,8 @@ std::vector<ErrorSample> associate(const std::vector<loc::PoseEstimate>& estimat
                                    const std::vector<data::TimedPose>& gt, double max_gap = 1.0);
 
 struct Metrics {
-  long steps = 0;       ///< estimates produced
-  long associated = 0;  ///< estimates with ground truth
+  long steps = 0;         ///< estimates produced
+  long associated = 0;    ///< estimates with ground truth
   double coverage = 0.0;  ///< fraction of ground-truth samples with an estimate within tolerance
   double rmse_x = 0.0, rmse_y = 0.0;
   double rmse_2d = 0.0;  ///< sqrt(rmse_x^2 + rmse_y^2), the PF-IBAS paper's RMSE_z

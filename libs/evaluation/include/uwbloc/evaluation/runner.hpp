@@ -18,10 +18,10 @@ namespace uwbloc::eval {
 using ProgressFn = std::function<void(double fraction, const std::string& label)>;
 
 struct RunResult {
-  std::string spec;  ///< method spec as given
-  std::string name;  ///< registry name
-  std::vector<loc::ParamInfo> parameters;       ///< effective parameters
-  std::vector<loc::PoseEstimate> trajectory;    ///< one pose per timestamp (the latest wins)
+  std::string spec;                           ///< method spec as given
+  std::string name;                           ///< registry name
+  std::vector<loc::ParamInfo> parameters;     ///< effective parameters
+  std::vector<loc::PoseEstimate> trajectory;  ///< one pose per timestamp (the latest wins)
   loc::EstimatorStatistics statistics;
   double processing_seconds = 0.0;  ///< wall time inside the estimator
   uint64_t seed = 0;

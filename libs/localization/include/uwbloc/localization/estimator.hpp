@@ -23,7 +23,7 @@ struct PoseEstimate {
 };
 
 struct EstimatorStatistics {
-  std::map<std::string, long> rejected;                       ///< reason -> count
+  std::map<std::string, long> rejected;                           ///< reason -> count
   std::map<int, std::map<std::string, long>> rejected_by_anchor;  ///< anchor -> reason -> count
   long accepted_ranges = 0;
   long resets = 0;  ///< divergence re-initialisations

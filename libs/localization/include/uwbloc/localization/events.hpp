@@ -21,12 +21,12 @@ struct OdometryIncrement {
 struct LaserScan {
   double t = 0.0;
   Eigen::Vector3d sensor_pose = Eigen::Vector3d::Zero();  ///< (x, y, yaw) on the robot
-  double sensor_height = 0.0;                            ///< [m]
-  float angle_min = 0.0f;                                ///< angle of the first ray [rad]
-  float angle_increment = 0.0f;                          ///< [rad]
-  float max_range = 0.0f;                                ///< [m]
-  std::vector<float> ranges;                             ///< [m]
-  std::vector<unsigned char> valid;                      ///< 1 where the ray returned
+  double sensor_height = 0.0;                             ///< [m]
+  float angle_min = 0.0f;                                 ///< angle of the first ray [rad]
+  float angle_increment = 0.0f;                           ///< [rad]
+  float max_range = 0.0f;                                 ///< [m]
+  std::vector<float> ranges;                              ///< [m]
+  std::vector<unsigned char> valid;                       ///< 1 where the ray returned
 };
 
 /// Planar IMU sample.
@@ -44,6 +44,9 @@ inline double eventTime(const Event& e) {
 
 /// Composes a pose with an increment expressed in its own frame (SE(2) oplus).
 Eigen::Vector3d composePose(const Eigen::Vector3d& pose, const Eigen::Vector3d& delta);
+
+/// The increment that takes `from` to `to`, in the frame of `from` (SE(2) inverse compose).
+Eigen::Vector3d relativePose(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
 
 /// Wraps an angle to (-pi, pi].
 double wrapAngle(double a);

@@ -26,7 +26,10 @@ class HeadingFromMotion {
   double update(const Eigen::Vector2d& velocity);
   double heading() const { return heading_; }
   bool valid() const { return valid_; }
-  void setHeading(double h) { heading_ = h; valid_ = true; }
+  void setHeading(double h) {
+    heading_ = h;
+    valid_ = true;
+  }
 
  private:
   double min_speed_;

@@ -12,13 +12,13 @@
 namespace uwbloc::loc {
 
 struct RangeFrontEndParams {
-  double sigma = 0.15;          ///< range standard deviation [m]
-  double max_range = 100.0;     ///< longer ranges are rejected [m]
-  bool increment_gate = true;   ///< apply the increment-queue gate
-  int iq_length = 5;            ///< increment queue length n
-  double iq_zeta = 3.0;         ///< increment queue scale ζ
-  double iq_max_speed = 2.0;    ///< fastest plausible tag speed [m/s]
-  double iq_floor = 0.3;        ///< increment tolerance for noise [m]
+  double sigma = 0.15;         ///< range standard deviation [m]
+  double max_range = 100.0;    ///< longer ranges are rejected [m]
+  bool increment_gate = true;  ///< apply the increment-queue gate
+  int iq_length = 5;           ///< increment queue length n
+  double iq_zeta = 3.0;        ///< increment queue scale ζ
+  double iq_max_speed = 2.0;   ///< fastest plausible tag speed [m/s]
+  double iq_floor = 0.3;       ///< increment tolerance for noise [m]
 
   template <class V>
   void visit(V&& v) {
@@ -51,6 +51,18 @@ class RangeFrontEnd {
   std::vector<uwb::Anchor> anchors_;
   uwb::IncrementQueueGate increments_;
   double last_t_ = -1e300;
+};
+
+/// Base of the UWB methods: owns the front end and turns an event into an accepted range,
+/// counting each rejection against its anchor.
+class UwbEstimator : public Estimator {
+ protected:
+  UwbEstimator(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors)
+      : front_(params, std::move(anchors)) {}
+  /// The accepted range carried by `event`; nothing for other events and rejected ranges.
+  std::optional<AcceptedRange> acceptRange(const Event& event);
+
+  RangeFrontEnd front_;
 };
 
 /// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds

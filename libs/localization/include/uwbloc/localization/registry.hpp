@@ -49,10 +49,10 @@ class Registry {
 
 /// Registration helper: a method whose estimator is constructed as Est(Params, context).
 template <class Est, class Params>
-MethodInfo makeMethod(std::string name, std::string description,
-                      std::function<std::unique_ptr<Estimator>(const Params&,
-                                                               const EstimatorContext&)>
-                          factory = nullptr) {
+MethodInfo makeMethod(
+    std::string name, std::string description,
+    std::function<std::unique_ptr<Estimator>(const Params&, const EstimatorContext&)> factory =
+        nullptr) {
   MethodInfo info;
   info.name = name;
   info.description = std::move(description);

@@ -36,10 +36,10 @@ struct ValidityParams {
 std::optional<RejectReason> checkValidity(double range, const ValidityParams& params = {});
 
 struct IncrementQueueParams {
-  int queue_length = 5;         ///< n, the paper's queue length
-  double zeta = 3.0;            ///< ζ, scale on the mean recent increment
-  double max_speed = 2.0;       ///< v_max, fastest plausible tag speed [m/s]
-  double noise_floor = 0.3;     ///< tolerance for ranging noise [m]
+  int queue_length = 5;              ///< n, the paper's queue length
+  double zeta = 3.0;                 ///< ζ, scale on the mean recent increment
+  double max_speed = 2.0;            ///< v_max, fastest plausible tag speed [m/s]
+  double noise_floor = 0.3;          ///< tolerance for ranging noise [m]
   int max_consecutive_rejects = 10;  ///< after this many, re-seed on the newest range
 };
 

@@ -15,9 +15,9 @@ struct Anchor {
 
 /// One two-way range from the robot's tag to one anchor.
 struct Range {
-  double t = 0.0;        ///< timestamp [s]
-  int anchor_id = 0;     ///< which anchor answered
-  double range = 0.0;    ///< measured 3D distance [m]
+  double t = 0.0;      ///< timestamp [s]
+  int anchor_id = 0;   ///< which anchor answered
+  double range = 0.0;  ///< measured 3D distance [m]
   /// Tag position on the robot (x forward, y left, z up) [m]: lever arm and tag height.
   Eigen::Vector3d tag_on_robot = Eigen::Vector3d::Zero();
   std::optional<double> rx_power_dbm;  ///< received power, when the device reports it

@@ -12,7 +12,7 @@ namespace uwbloc::loc {
 enum class MultilaterationSolver { kLinearLS, kGaussNewton, kChan };
 
 struct MultilaterationParams {
-  RangeFrontEndParams front;  ///< range checks and gates
+  RangeFrontEndParams front;   ///< range checks and gates
   double epoch_window = 0.15;  ///< ranges within this span form one epoch [s]
 
   template <class V>
@@ -22,7 +22,7 @@ struct MultilaterationParams {
   }
 };
 
-class MultilaterationEstimator : public Estimator {
+class MultilaterationEstimator : public UwbEstimator {
  public:
   MultilaterationEstimator(MultilaterationSolver solver, const MultilaterationParams& params,
                            const EstimatorContext& context);
@@ -36,7 +36,6 @@ class MultilaterationEstimator : public Estimator {
 
   MultilaterationSolver solver_;
   MultilaterationParams params_;
-  RangeFrontEnd front_;
   EpochBuffer epochs_;
   HeadingFromMotion heading_;
   std::optional<Eigen::Vector2d> last_tag_;

@@ -44,7 +44,7 @@ struct UwbEkfParams {
   }
 };
 
-class UwbEkf : public Estimator {
+class UwbEkf : public UwbEstimator {
  public:
   UwbEkf(const UwbEkfParams& params, const EstimatorContext& context);
 
@@ -55,13 +55,11 @@ class UwbEkf : public Estimator {
  private:
   void predict(double t);
   /// Returns false when the innovation gate rejects the range.
-  bool inGate(const AcceptedRange& r, double* innovation, Eigen::RowVector4d* hj,
-              double* s) const;
+  bool inGate(const AcceptedRange& r, double* innovation, Eigen::RowVector4d* hj, double* s) const;
   void update(double innovation, const Eigen::RowVector4d& hj, double s);
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
   UwbEkfParams params_;
-  RangeFrontEnd front_;
   EpochBuffer init_epochs_;
   HeadingFromMotion heading_;
   bool initialised_ = false;

@@ -13,14 +13,14 @@ namespace uwbloc::loc {
 
 struct UwbKfParams {
   RangeFrontEndParams front;
-  double epoch_window = 0.15;   ///< ranges within this span form one epoch [s]
-  std::string solver = "gn";    ///< multilateration for the measurement: ls (the greenhouse
-                                ///< paper), gn or chan
-  double accel_psd = 0.1;       ///< q, white-acceleration spectral density [m^2/s^3]
-  double velocity_tau = 5.0;    ///< velocity correlation time [s]; 0 = constant velocity
-  double gate = 13.8;           ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
-  int max_gated = 5;            ///< consecutive gated fixes before re-initialising
-  double init_residual = 0.5;   ///< largest residual norm of a fix used to (re)initialise [m]
+  double epoch_window = 0.15;  ///< ranges within this span form one epoch [s]
+  std::string solver = "gn";   ///< multilateration for the measurement: ls (the greenhouse
+                               ///< paper), gn or chan
+  double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
+  double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
+  double gate = 13.8;          ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
+  int max_gated = 5;           ///< consecutive gated fixes before re-initialising
+  double init_residual = 0.5;  ///< largest residual norm of a fix used to (re)initialise [m]
 
   template <class V>
   void visit(V&& v) {
@@ -35,7 +35,7 @@ struct UwbKfParams {
   }
 };
 
-class UwbKf : public Estimator {
+class UwbKf : public UwbEstimator {
  public:
   UwbKf(const UwbKfParams& params, const EstimatorContext& context);
 
@@ -48,7 +48,6 @@ class UwbKf : public Estimator {
   std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch);
 
   UwbKfParams params_;
-  RangeFrontEnd front_;
   EpochBuffer epochs_;
   HeadingFromMotion heading_;
   bool initialised_ = false;
