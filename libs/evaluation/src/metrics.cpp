@@ -69,7 +69,11 @@ Metrics computeMetrics(const std::vector<ErrorSample>& errors,
     }
     m.coverage = static_cast<double>(covered) / static_cast<double>(gt.size());
   }
-  if (errors.empty()) return m;
+  if (errors.empty()) {
+    // Nothing to score: the metrics are undefined, not zero (null in metrics.json).
+    m.rmse_x = m.rmse_y = m.rmse_2d = m.mae_2d = m.median_2d = m.p95_2d = m.max_2d = NAN;
+    return m;
+  }
   double sx = 0.0, sy = 0.0, sa = 0.0;
   std::vector<double> e2d;
   e2d.reserve(errors.size());

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -115,14 +116,23 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                 "median", "p95", "max", "ms/step", "xRT", "reject");
   out << buf;
   for (const auto& m : methods) {
-    std::snprintf(buf, sizeof buf,
-                  "%-22s %4d %6ld %5.2f %7.3f %7.3f %7.3f %6.3f %7.3f %7.3f %7.3f %7.3f %9.4f "
-                  "%8.0f %7ld\n",
-                  m.spec.c_str(), m.runs, m.metrics.steps, m.metrics.coverage, m.metrics.rmse_x,
-                  m.metrics.rmse_y, m.metrics.rmse_2d, m.rmse_2d_std, m.metrics.mae_2d,
-                  m.metrics.median_2d, m.metrics.p95_2d, m.metrics.max_2d, m.ms_per_step,
-                  m.realtime_factor, totalRejected(m));
-    out << buf;
+    // Undefined metrics (no estimate with ground truth) print as "-".
+    auto num = [](double v, int width, int precision) {
+      char cell[32];
+      if (std::isfinite(v))
+        std::snprintf(cell, sizeof cell, "%*.*f", width, precision, v);
+      else
+        std::snprintf(cell, sizeof cell, "%*s", width, "-");
+      return std::string(cell);
+    };
+    out << std::left << std::setw(22) << m.spec << std::right << " " << std::setw(4) << m.runs
+        << " " << std::setw(6) << m.metrics.steps << " " << num(m.metrics.coverage, 5, 2) << " "
+        << num(m.metrics.rmse_x, 7, 3) << " " << num(m.metrics.rmse_y, 7, 3) << " "
+        << num(m.metrics.rmse_2d, 7, 3) << " " << num(m.rmse_2d_std, 6, 3) << " "
+        << num(m.metrics.mae_2d, 7, 3) << " " << num(m.metrics.median_2d, 7, 3) << " "
+        << num(m.metrics.p95_2d, 7, 3) << " " << num(m.metrics.max_2d, 7, 3) << " "
+        << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " "
+        << std::setw(7) << totalRejected(m) << "\n";
   }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
          "samples with an estimate within 1 s; xRT = real-time factor.\n";

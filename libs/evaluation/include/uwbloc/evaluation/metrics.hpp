@@ -26,6 +26,7 @@ struct ErrorSample {
 std::vector<ErrorSample> associate(const std::vector<loc::PoseEstimate>& estimates,
                                    const std::vector<data::TimedPose>& gt, double max_gap = 1.0);
 
+/// Error metrics are NaN when no estimate could be associated with the ground truth.
 struct Metrics {
   long steps = 0;         ///< estimates produced
   long associated = 0;    ///< estimates with ground truth
