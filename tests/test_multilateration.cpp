@@ -104,8 +104,9 @@ TEST(RangeModel, HeightProjection) {
 
 TEST(RangeModel, JacobianMatchesNumeric) {
   const Eigen::Vector3d anchor(4.0, -2.0, 2.1), tag(0.16, 0.05, 1.12);
-  for (const Eigen::Vector3d& pose : {Eigen::Vector3d(1.0, 2.0, 0.3), Eigen::Vector3d(-3, 0.5, -2.8),
-                                     Eigen::Vector3d(3.9, -2.1, 1.57)}) {
+  for (const Eigen::Vector3d& pose :
+       {Eigen::Vector3d(1.0, 2.0, 0.3), Eigen::Vector3d(-3, 0.5, -2.8),
+        Eigen::Vector3d(3.9, -2.1, 1.57)}) {
     Eigen::RowVector3d j;
     const double h = predictRange(pose, tag, anchor, &j);
     EXPECT_NEAR(h, (tagPosition(pose, tag) - anchor).norm(), 1e-12);

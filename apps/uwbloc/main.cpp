@@ -6,10 +6,12 @@
 #include <cstdio>
 #include <iostream>
 
+#include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
+#include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -141,7 +143,10 @@ int main(int argc, char** argv) {
   std::string import_data_dir;
   auto* import = app.add_subcommand(
       "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
-  import->add_option("format", format, "source format: hanyang")->required();
+  import
+      ->add_option("format", format,
+                   "source format: hanyang (one dynamic run folder) or carmen (a .log or .log.gz)")
+      ->required();
   import
       ->add_option("source", source,
                    "source folder (as given, or relative to the data directory), e.g. "
@@ -152,6 +157,35 @@ int main(int argc, char** argv) {
   import->add_option("--tag-height", hanyang.tag_height, "hanyang: tag height [m]")
       ->capture_default_str();
 
+  std::string scenario, sim_out;
+  uint64_t sim_seed = 1;
+  auto* sim = app.add_subcommand(
+      "simulate",
+      "Simulate a scenario: writes a rawlog, ground truth (TUM and time x y phi), "
+      "anchors, map and a manifest");
+  sim->add_option("--scenario,-s", scenario,
+                  "scenario INI (as given, or in the repository's datasets/scenarios/)")
+      ->required();
+  sim->add_option("--out,-o", sim_out, "output folder")->required();
+  sim->add_option("--seed", sim_seed, "random seed; the same seed gives byte-identical files")
+      ->capture_default_str();
+
+  data::AugmentRequest aug;
+  std::string aug_out;
+  auto* augment = app.add_subcommand(
+      "augment", "Add simulated UWB ranges to a real LiDAR recording at its reference poses");
+  augment->add_option("--rawlog,-r", aug.rawlog, "recording (rawlog)")->required();
+  augment->add_option("--reference,-p", aug.reference, "reference poses: .tum, else 'time x y phi'")
+      ->required();
+  augment->add_option("--anchors,-a", aug.anchors_csv, "anchors CSV (id,x,y,z)")->required();
+  augment->add_option("--out,-o", aug_out, "output folder")->required();
+  augment->add_option("--scenario,-s", aug.scenario,
+                      "take the [uwb] noise model from this scenario");
+  augment->add_option("--map", aug.map,
+                      "map for NLOS: a map file, or 'scans' to map the recording's own scans at "
+                      "the reference poses (default: no NLOS)");
+  augment->add_option("--seed", aug.seed, "random seed")->capture_default_str();
+
   auto* list = app.add_subcommand("methods", "List the methods with their parameters and defaults");
 
   CLI11_PARSE(app, argc, argv);
@@ -159,14 +193,33 @@ int main(int argc, char** argv) {
     if (*run) return runMethods(run_opt, {method});
     if (*compare) return runMethods(cmp_opt, splitMethods(methods));
     if (*import) {
-      if (format != "hanyang") {
-        std::cerr << "error: unknown import format '" << format << "' (known: hanyang)\n";
+      const std::string src = data::resolveInputPath(source, data::resolveDataDir(import_data_dir));
+      if (format == "hanyang") {
+        const auto s = data::importHanyang(src, import_out, hanyang);
+        std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors and "
+                  << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest << "\n";
+      } else if (format == "carmen") {
+        const auto s = data::importCarmen(src, import_out);
+        std::cout << "Imported " << s.ranges << " scans and " << s.ground_truth_rows
+                  << " reference poses\nManifest: " << s.manifest << "\n";
+      } else {
+        std::cerr << "error: unknown import format '" << format << "' (known: hanyang, carmen)\n";
         return 2;
       }
-      const std::string src = data::resolveInputPath(source, data::resolveDataDir(import_data_dir));
-      const auto s = data::importHanyang(src, import_out, hanyang);
-      std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors and "
-                << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest << "\n";
+      return 0;
+    }
+    if (*sim) {
+      const std::string path = data::resolveInputPath(scenario, "");
+      const auto sc = data::loadScenario(path);
+      for (const auto& w : sc.warnings) std::cerr << "warning: " << path << ": " << w << "\n";
+      const auto manifest = data::writeSimulation(sc, sim_seed, sim_out);
+      std::cout << "Simulated " << sc.name << " (" << sc.duration << " s, seed " << sim_seed
+                << ")\nManifest: " << manifest << "\n";
+      return 0;
+    }
+    if (*augment) {
+      const auto manifest = data::writeAugmented(aug, aug_out);
+      std::cout << "Manifest: " << manifest << "\n";
       return 0;
     }
     if (*list) {

@@ -23,8 +23,10 @@ std::string resolveInputPath(const std::string& path, const std::string& data_di
   if (path.empty() || fs::exists(path, ec)) return path;
   if (!data_dir.empty() && fs::exists(fs::path(data_dir) / path, ec))
     return (fs::path(data_dir) / path).string();
-  const fs::path bundled = fs::path(UWBLOC_SOURCE_DIR) / "datasets" / path;
-  if (fs::exists(bundled, ec)) return bundled.string();
+  for (const char* folder : {"datasets", "datasets/scenarios"}) {
+    const fs::path bundled = fs::path(UWBLOC_SOURCE_DIR) / folder / path;
+    if (fs::exists(bundled, ec)) return bundled.string();
+  }
   return path;
 }
 

@@ -148,6 +148,14 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   if (ini.get("tag", "lever_arm_x") || ini.get("tag", "lever_arm_y"))
     m.lever_arm = Eigen::Vector2d(ini.getDouble("tag", "lever_arm_x", 0.0),
                                   ini.getDouble("tag", "lever_arm_y", 0.0));
+  if (ini.hasSection("bounds")) {
+    BoundsSpec b;
+    b.range_sigma = ini.getDouble("bounds", "range_sigma", b.range_sigma);
+    b.accel_psd = ini.getDouble("bounds", "accel_psd", b.accel_psd);
+    if (!(b.range_sigma > 0) || !(b.accel_psd > 0))
+      throwInputError(path, ini.lineOf("bounds", "range_sigma"), "[bounds] values must be > 0");
+    m.bounds = b;
+  }
   ini.rejectUnread();
   return m;
 }

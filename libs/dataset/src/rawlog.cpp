@@ -6,6 +6,7 @@
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CObservationBeaconRanges.h>
+#include <mrpt/obs/CObservationIMU.h>
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/serialization/CArchive.h>
@@ -20,6 +21,17 @@ namespace uwbloc::data {
 namespace {
 
 using mrpt::obs::CObservation;
+
+// Ranges of the robot's own tag carry the label "UWB"; another tag k writes "UWB_TAG<k>".
+int tagIdFromLabel(const std::string& label) {
+  const std::string prefix = "UWB_TAG";
+  if (label.rfind(prefix, 0) != 0) return 0;
+  try {
+    return std::stoi(label.substr(prefix.size()));
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
 
 double toSeconds(mrpt::Clock::time_point t) {
   return t == INVALID_TIMESTAMP ? 0.0 : mrpt::Clock::toDouble(t);
@@ -42,6 +54,7 @@ class Converter {
         uwb::Range r;
         r.t = t;
         r.anchor_id = static_cast<int>(m.beaconID);
+        r.tag_id = tagIdFromLabel(b->sensorLabel);
         r.range = m.sensedDistance;
         r.tag_on_robot << m.sensorLocationOnRobot.x(), m.sensorLocationOnRobot.y(),
             m.sensorLocationOnRobot.z();
@@ -66,6 +79,13 @@ class Converter {
       }
       rec_.events.emplace_back(std::move(scan));
       ++rec_.counts["scans"];
+    } else if (const auto* imu = dynamic_cast<const mrpt::obs::CObservationIMU*>(&obs)) {
+      loc::ImuSample sample;
+      sample.t = t;
+      sample.accel << imu->get(mrpt::obs::IMU_X_ACC), imu->get(mrpt::obs::IMU_Y_ACC);
+      sample.gyro_z = imu->get(mrpt::obs::IMU_YAW_VEL);
+      rec_.events.emplace_back(sample);
+      ++rec_.counts["imu_observations"];
     } else if (const auto* o = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs)) {
       const Eigen::Vector3d pose(o->odometry.x(), o->odometry.y(), o->odometry.phi());
       if (last_odometry_) {
@@ -190,11 +210,12 @@ void writeRawlog(const std::string& path, const std::vector<loc::Event>& events)
     for (const auto& e : events) {
       if (const auto* r = std::get_if<uwb::Range>(&e)) {
         const auto ts = mrpt::Clock::fromDouble(r->t);
-        if (pending && pending->timestamp != ts) flush();
+        const std::string label = r->tag_id == 0 ? "UWB" : "UWB_TAG" + std::to_string(r->tag_id);
+        if (pending && (pending->timestamp != ts || pending->sensorLabel != label)) flush();
         if (!pending) {
           pending = std::make_shared<mrpt::obs::CObservationBeaconRanges>();
           pending->timestamp = ts;
-          pending->sensorLabel = "UWB";
+          pending->sensorLabel = label;
           pending->minSensorDistance = 0;
           pending->maxSensorDistance = 1000;
           pending->stdError = 0.1f;
@@ -221,6 +242,14 @@ void writeRawlog(const std::string& path, const std::vector<loc::Event>& events)
         }
         odometry = loc::composePose(odometry, o->delta);
         obs.odometry = mrpt::poses::CPose2D(odometry.x(), odometry.y(), odometry.z());
+        archive << obs;
+      } else if (const auto* imu = std::get_if<loc::ImuSample>(&e)) {
+        mrpt::obs::CObservationIMU obs;
+        obs.timestamp = mrpt::Clock::fromDouble(imu->t);
+        obs.sensorLabel = "IMU";
+        obs.set(mrpt::obs::IMU_X_ACC, imu->accel.x());
+        obs.set(mrpt::obs::IMU_Y_ACC, imu->accel.y());
+        obs.set(mrpt::obs::IMU_YAW_VEL, imu->gyro_z);
         archive << obs;
       } else if (const auto* s = std::get_if<loc::LaserScan>(&e)) {
         mrpt::obs::CObservation2DRangeScan obs;

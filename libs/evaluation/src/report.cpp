@@ -131,8 +131,8 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
         << num(m.metrics.rmse_2d, 7, 3) << " " << num(m.rmse_2d_std, 6, 3) << " "
         << num(m.metrics.mae_2d, 7, 3) << " " << num(m.metrics.median_2d, 7, 3) << " "
         << num(m.metrics.p95_2d, 7, 3) << " " << num(m.metrics.max_2d, 7, 3) << " "
-        << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " "
-        << std::setw(7) << totalRejected(m) << "\n";
+        << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " " << std::setw(7)
+        << totalRejected(m) << "\n";
   }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
          "samples with an estimate within 1 s; xRT = real-time factor.\n";

@@ -18,6 +18,7 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
     if (reason) *reason = r;
     return std::nullopt;
   };
+  if (range.tag_id != 0) return fail(uwb::RejectReason::kOtherTag);
   if (auto bad = uwb::checkValidity(range.range, {1e-3, params_.max_range})) return fail(*bad);
   const uwb::Anchor* anchor = uwb::findAnchor(anchors_, range.anchor_id);
   if (!anchor) return fail(uwb::RejectReason::kUnknownAnchor);

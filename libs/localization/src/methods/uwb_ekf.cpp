@@ -95,27 +95,30 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
   double innovation = 0.0, s = 0.0;
   Eigen::RowVector4d hj;
   const int id = accepted->measurement.anchor_id;
-  if (inGate(*accepted, &innovation, &hj, &s)) {
-    gated_in_a_row_ = 0;
-    auto q = quarantine_.find(id);
-    if (q != quarantine_.end() && std::abs(innovation) > params_.readmit_tol) {
-      q->second = 0;
-      countRejection("quarantine", id);
-    } else if (q == quarantine_.end() || ++q->second >= params_.readmit) {
-      if (q != quarantine_.end()) quarantine_.erase(q);
-      update(innovation, hj, s);
-    } else {
-      countRejection("quarantine", id);
-    }
-  } else {
+  // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
+  const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigma);
+  const bool in_gate = inGate(*accepted, &innovation, &hj, &s);
+  auto q = quarantine_.find(id);
+  bool used = false;
+  if (!in_gate) {
     countRejection(uwb::RejectReason::kInnovation, id);
     quarantine_[id] = 0;
-    if (++gated_in_a_row_ >= params_.max_gated) {
-      // Every anchor disagrees with the state for a while: the filter is lost.
-      ++stats_.resets;
-      reset();
-      return std::nullopt;
-    }
+  } else if (q != quarantine_.end() && std::abs(innovation) > tolerance) {
+    q->second = 0;
+    countRejection("quarantine", id);
+  } else if (q == quarantine_.end() || ++q->second >= params_.readmit) {
+    if (q != quarantine_.end()) quarantine_.erase(q);
+    update(innovation, hj, s);
+    used = true;
+  } else {
+    countRejection("quarantine", id);
+  }
+  // Every anchor disagreeing with the state for a while means the filter is lost.
+  gated_in_a_row_ = used ? 0 : gated_in_a_row_ + 1;
+  if (gated_in_a_row_ >= params_.max_gated) {
+    ++stats_.resets;
+    reset();
+    return std::nullopt;
   }
   heading_.update(x_.tail<2>());
   return output(accepted->measurement.tag_on_robot);

@@ -19,6 +19,10 @@
 //   [tag]                                      (optional: overrides the rawlog's sensor pose)
 //   height = 1.12    lever_arm_x = 0.16    lever_arm_y = 0
 //
+//   [bounds]                                   (optional: allows Cramér–Rao bounds)
+//   range_sigma = 0.1                          LOS range noise std [m]
+//   accel_psd = 0.1                            CV motion noise for the posterior bound [m^2/s^3]
+//
 // Paths are relative to the manifest's folder; a path starting with "${DATA}/" is relative to
 // the data directory (see data_dir.hpp). Unknown keys are errors that name the line.
 #pragma once
@@ -34,6 +38,11 @@ namespace uwbloc::data {
 
 enum class GroundTruthFormat { kNone, kStepXyPhi, kTimeXyPhi, kTum };
 
+struct BoundsSpec {
+  double range_sigma = 0.1;  ///< LOS range noise std [m]
+  double accel_psd = 0.1;    ///< white-acceleration density of the CV model [m^2/s^3]
+};
+
 struct Manifest {
   std::string path;  ///< the manifest file itself
   std::string name;
@@ -45,6 +54,7 @@ struct Manifest {
   std::vector<uwb::Anchor> anchors;  ///< already in the map/GT frame
   std::optional<double> tag_height;
   std::optional<Eigen::Vector2d> lever_arm;
+  std::optional<BoundsSpec> bounds;
 };
 
 /// Loads and validates a manifest; throws InputError naming the file and line.

@@ -22,6 +22,7 @@ enum class RejectReason {
   kThreeSigma,     ///< 3-sigma gate on a residual
   kInnovation,     ///< filter innovation gate (Mahalanobis)
   kTimeBackwards,  ///< timestamp earlier than the previous one
+  kOtherTag,       ///< measured by another tag (a mobile node), not by the robot's own
 };
 
 /// Stable snake_case names used in metrics.json's "rejected" map.

@@ -16,13 +16,17 @@ struct Anchor {
 /// One two-way range from the robot's tag to one anchor.
 struct Range {
   double t = 0.0;      ///< timestamp [s]
-  int anchor_id = 0;   ///< which anchor answered
+  int anchor_id = 0;   ///< which anchor answered (>= kMobileAnchorBase: another tag)
+  int tag_id = 0;      ///< which tag measured: 0 is the robot's own, others are mobile nodes
   double range = 0.0;  ///< measured 3D distance [m]
   /// Tag position on the robot (x forward, y left, z up) [m]: lever arm and tag height.
   Eigen::Vector3d tag_on_robot = Eigen::Vector3d::Zero();
   std::optional<double> rx_power_dbm;  ///< received power, when the device reports it
   std::optional<double> fp_power_dbm;  ///< first-path power, when the device reports it
 };
+
+/// Ranges to another tag use anchor id kMobileAnchorBase + that tag's id.
+constexpr int kMobileAnchorBase = 1000;
 
 /// Finds an anchor by id; nullptr when unknown.
 inline const Anchor* findAnchor(const std::vector<Anchor>& anchors, int id) {

@@ -25,9 +25,9 @@ struct UwbEkfParams {
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 9.0;           ///< chi-square gate on one range innovation (3 sigma, 1 dof)
-  int max_gated = 12;          ///< consecutive gated ranges before re-initialising
+  int max_gated = 12;          ///< consecutive unused ranges before re-initialising
   int readmit = 3;             ///< consecutive in-gate ranges before a quarantined anchor is used
-  double readmit_tol = 1.0;    ///< and each within this of the prediction [m]
+  double readmit_tol = 1.0;    ///< and each within max(this, 3 sigma) of the prediction [m]
   double init_residual = 0.5;  ///< largest residual norm of an initial fix [m]
 
   template <class V>
@@ -37,7 +37,8 @@ struct UwbEkfParams {
     v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
     v("gate", gate, "chi-square gate on each range innovation (1 dof)");
-    v("max_gated", max_gated, "consecutive gated ranges before re-initialising");
+    v("max_gated", max_gated,
+      "consecutive unused (gated or quarantined) ranges before re-initialising");
     v("readmit", readmit, "in-gate ranges in a row before a gated anchor is used again");
     v("readmit_tol", readmit_tol, "largest |innovation| that counts towards readmission [m]");
     v("init_residual", init_residual, "largest residual norm of the initial fix [m]");

@@ -1,0 +1,67 @@
+// The simulator: a scenario and a seed in, an ordinary dataset out (rawlog, ground truth,
+// anchors, map, manifest), so everything downstream stays the same. The same seed gives
+// byte-identical files.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/scenario.hpp"
+#include "uwbloc/localization/events.hpp"
+
+namespace uwbloc::data {
+
+/// Ground truth of one simulated range, written to range_truth.csv.
+struct RangeTruth {
+  double t = 0.0;
+  int tag_id = 0, anchor_id = 0;
+  double true_range = 0.0;
+  double error = 0.0;  ///< measured minus true (for zero readings, -true_range)
+  bool nlos = false;   ///< the tag-anchor segment crossed an occupied cell
+};
+
+struct Simulation {
+  std::vector<loc::Event> events;       ///< time-ordered
+  std::vector<TimedPose> ground_truth;  ///< robot poses at gt_rate
+  std::vector<TimedPose> tag2_ground_truth;
+  std::vector<RangeTruth> range_truth;
+};
+
+/// Generates the recordings of a scenario (no files).
+Simulation simulate(const Scenario& scenario, uint64_t seed);
+
+/// simulate() and write: sim.rawlog, ground_truth.tum, ground_truth.txt (time x y phi),
+/// anchors.csv, range_truth.csv, range_features.csv (when enabled), map.gridmap.gz (when there
+/// is a world), tag2_ground_truth.tum (when there is a second tag) and dataset.ini.
+/// Returns the manifest path.
+std::string writeSimulation(const Scenario& scenario, uint64_t seed, const std::string& out_dir);
+
+/// Adds simulated UWB ranges (the scenario's [uwb] model, its anchors and, when given, NLOS from
+/// `map`) to a recorded event stream, at the poses of `reference` (interpolated).
+std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
+                                       const std::vector<TimedPose>& reference,
+                                       const std::vector<uwb::Anchor>& anchors,
+                                       const UwbSimSpec& uwb, const loc::OccupancyMap* map,
+                                       uint64_t seed, std::vector<RangeTruth>* truth = nullptr);
+
+struct AugmentRequest {
+  std::string rawlog;            ///< recording with scans and odometry
+  std::string reference;         ///< reference poses: TUM (.tum) or "time x y phi"
+  std::string anchors_csv;       ///< id,x,y,z in the reference frame
+  std::string scenario;          ///< optional: take the [uwb] model from this scenario
+  std::string map;               ///< optional map for NLOS; "scans" builds one from the scans
+  double map_resolution = 0.05;  ///< for a map built from the scans [m]
+  uint64_t seed = 1;
+};
+
+/// augmentWithUwb() on files: writes augmented.rawlog, anchors.csv, reference.txt,
+/// range_truth.csv, map.gridmap.gz (when NLOS is simulated) and dataset.ini into `out_dir`.
+/// Returns the manifest path.
+std::string writeAugmented(const AugmentRequest& request, const std::string& out_dir);
+
+/// Writes "t x y phi" rows.
+std::string formatTimeXyPhi(const std::vector<TimedPose>& poses);
+
+}  // namespace uwbloc::data

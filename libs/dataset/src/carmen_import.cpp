@@ -1,0 +1,125 @@
+#include "uwbloc/dataset/carmen_import.hpp"
+
+#include <mrpt/io/CFileGZInputStream.h>
+
+#include <filesystem>
+#include <sstream>
+
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace uwbloc::data {
+
+namespace {
+
+std::string readAll(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throwInputError(path, 0, "log not found");
+  mrpt::io::CFileGZInputStream in;  // also reads uncompressed files
+  if (!in.open(path)) throwInputError(path, 0, "cannot open log");
+  std::string text;
+  char buf[65536];
+  for (;;) {
+    const size_t n = in.Read(buf, sizeof buf);
+    if (n == 0) break;
+    text.append(buf, n);
+  }
+  return text;
+}
+
+}  // namespace
+
+ImportSummary importCarmen(const std::string& log_path, const std::string& out_dir) {
+  const std::string text = readAll(log_path);
+  std::istringstream lines(text);
+  std::string line;
+  int number = 0;
+  std::vector<loc::Event> events;
+  std::vector<TimedPose> reference;
+  std::optional<Eigen::Vector3d> last_odom;
+  bool has_odom_lines = text.find("\nODOM ") != std::string::npos;
+  auto addOdometry = [&](double t, const Eigen::Vector3d& pose) {
+    if (last_odom) {
+      loc::OdometryIncrement inc;
+      inc.t = t;
+      inc.delta = loc::relativePose(*last_odom, pose);
+      events.emplace_back(inc);
+    }
+    last_odom = pose;
+  };
+  while (std::getline(lines, line)) {
+    ++number;
+    std::istringstream in(line);
+    std::string kind;
+    in >> kind;
+    std::vector<std::string> f;
+    for (std::string x; in >> x;) f.push_back(x);
+    auto num = [&](size_t i, const char* field) {
+      if (i >= f.size())
+        throwInputError(log_path, number, std::string("missing field '") + field + "'");
+      return parseNumber(f[i], log_path, number, field);
+    };
+    if (kind == "ODOM") {
+      // ODOM x y theta tv rv accel ipc_timestamp ipc_hostname logger_timestamp
+      addOdometry(num(6, "ipc_timestamp"), {num(0, "x"), num(1, "y"), num(2, "theta")});
+    } else if (kind == "FLASER") {
+      // FLASER n r1..rn x y theta odom_x odom_y odom_theta ipc_timestamp ipc_hostname logger_ts
+      const auto n = static_cast<size_t>(num(0, "num_readings"));
+      if (f.size() < n + 10) throwInputError(log_path, number, "FLASER line too short");
+      const double t = num(n + 7, "ipc_timestamp");
+      loc::LaserScan scan;
+      scan.t = t;
+      scan.max_range = 81.0f;
+      scan.angle_min = static_cast<float>(-M_PI / 2);
+      scan.angle_increment = static_cast<float>(n > 1 ? M_PI / (n - 1) : 0.0);
+      scan.ranges.resize(n);
+      scan.valid.resize(n);
+      for (size_t i = 0; i < n; ++i) {
+        scan.ranges[i] = static_cast<float>(num(1 + i, "range"));
+        scan.valid[i] = scan.ranges[i] > 0.0f && scan.ranges[i] < 80.0f;
+      }
+      events.emplace_back(std::move(scan));
+      reference.push_back({t, {num(n + 1, "x"), num(n + 2, "y"), num(n + 3, "theta")}});
+      if (!has_odom_lines)
+        addOdometry(t, {num(n + 4, "odom_x"), num(n + 5, "odom_y"), num(n + 6, "odom_theta")});
+    }
+  }
+  if (reference.empty()) throwInputError(log_path, 0, "no FLASER lines");
+  std::stable_sort(events.begin(), events.end(), [](const loc::Event& a, const loc::Event& b) {
+    return loc::eventTime(a) < loc::eventTime(b);
+  });
+  std::stable_sort(reference.begin(), reference.end(),
+                   [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
+
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  const fs::path out(out_dir);
+  writeRawlog((out / "carmen.rawlog").string(), events);
+  writeFileAtomic((out / "reference.txt").string(), formatTimeXyPhi(reference));
+  std::string name = fs::path(log_path).filename().string();
+  for (const char* ext : {".gz", ".log"})
+    if (name.size() > std::string(ext).size() &&
+        name.substr(name.size() - std::string(ext).size()) == ext)
+      name = name.substr(0, name.size() - std::string(ext).size());
+  std::ostringstream ini;
+  ini << "# Imported by 'uwbloc import carmen' from " << fs::absolute(log_path).string() << "\n"
+      << "# The reference is the log's SLAM-corrected laser pose, not independent ground truth.\n"
+      << "# No anchors: add some with 'uwbloc augment'. This manifest lists a placeholder anchor.\n"
+      << "[dataset]\nname = carmen_" << name
+      << "\nrawlog = carmen.rawlog\nground_truth = reference.txt\n"
+      << "ground_truth_format = time_xyphi\n\n[anchors]\nbeacon_001_ID = 1\nbeacon_001_X = 0\n"
+      << "beacon_001_Y = 0\nbeacon_001_Z = 2\n";
+  const std::string manifest = (out / "dataset.ini").string();
+  writeFileAtomic(manifest, ini.str());
+  long scans = 0;
+  for (const auto& e : events) scans += std::holds_alternative<loc::LaserScan>(e);
+  return {manifest, scans, 0, static_cast<long>(reference.size())};
+}
+
+}  // namespace uwbloc::data

@@ -1,0 +1,411 @@
+#include "uwbloc/dataset/simulator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <sstream>
+
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace uwbloc::data {
+
+namespace {
+
+using Rng = std::mt19937_64;
+
+bool inAny(const std::vector<Interval>& intervals, double t) {
+  return std::any_of(intervals.begin(), intervals.end(),
+                     [t](const Interval& i) { return t >= i.first && t <= i.second; });
+}
+
+// Ranging model of one tag-anchor measurement: LOS noise, NLOS bias, outliers, zeros, features.
+class RangeModel {
+ public:
+  RangeModel(const UwbSimSpec& spec, const loc::OccupancyMap* map, Rng& rng)
+      : spec_(spec), map_(map), rng_(rng) {}
+
+  // Returns false when out of range (no measurement).
+  bool measure(double t, int tag_id, const Eigen::Vector3d& tag, const uwb::Anchor& anchor,
+               const Eigen::Vector3d& tag_on_robot, std::vector<loc::Event>& out,
+               std::vector<RangeTruth>* truth) {
+    const double d = (tag - anchor.position).norm();
+    if (d > spec_.max_range) return false;
+    std::normal_distribution<double> n01(0.0, 1.0);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    // Draw every random number every time, so that one option does not shift the others' draws.
+    const double g = n01(rng_), u_nlos = u01(rng_), u_out = u01(rng_), u_mag = u01(rng_),
+                 u_sign = u01(rng_), u_zero = u01(rng_), g_rx = n01(rng_), u_feat = u01(rng_),
+                 g_fp = n01(rng_);
+    const bool nlos = map_ && map_->segmentBlocked(tag.head<2>(), anchor.position.head<2>(),
+                                                   1.5 * map_->resolution());
+    double err = spec_.bias + (spec_.sigma + spec_.sigma_per_m * d) * g;
+    if (auto it = spec_.anchor_bias.find(anchor.id); it != spec_.anchor_bias.end())
+      err += it->second;
+    if (nlos) {
+      if (spec_.nlos_distribution == "exponential")
+        err += -spec_.nlos_mean * std::log(std::max(1.0 - u_nlos, 1e-12));
+      else if (spec_.nlos_distribution == "uniform")
+        err += 2.0 * spec_.nlos_mean * u_nlos;
+      else
+        err += spec_.nlos_mean;
+    }
+    if (u_out < spec_.outlier_prob)
+      err += (u_sign < 0.5 ? -1.0 : 1.0) * (1.0 + (spec_.outlier_max - 1.0) * u_mag);
+    double measured = std::max(0.0, d + err);
+    if (u_zero < spec_.zero_prob) measured = 0.0;
+
+    uwb::Range r;
+    r.t = t;
+    r.anchor_id = anchor.id;
+    r.tag_id = tag_id;
+    r.range = measured;
+    r.tag_on_robot = tag_on_robot;
+    if (spec_.features) {
+      // Received power falls with log-distance; under NLOS the first path is attenuated more
+      // than the total, so rx - fp grows (as in DW1000 data).
+      const double rx =
+          -60.0 - 20.0 * std::log10(std::max(d, 0.1)) + g_rx - (nlos ? 3.0 + 5.0 * u_feat : 0.0);
+      const double gap = nlos ? 6.0 + 10.0 * u_feat + std::abs(g_fp) : 1.5 + 0.7 * std::abs(g_fp);
+      r.rx_power_dbm = std::round(rx * 100.0) / 100.0;
+      r.fp_power_dbm = std::round((rx - gap) * 100.0) / 100.0;
+    }
+    out.emplace_back(r);
+    if (truth) truth->push_back({t, tag_id, anchor.id, d, measured - d, nlos});
+    return true;
+  }
+
+ private:
+  const UwbSimSpec& spec_;
+  const loc::OccupancyMap* map_;
+  Rng& rng_;
+};
+
+Eigen::Vector3d tagWorld(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag) {
+  const double c = std::cos(pose.z()), s = std::sin(pose.z());
+  return {pose.x() + c * tag.x() - s * tag.y(), pose.y() + s * tag.x() + c * tag.y(), tag.z()};
+}
+
+std::string fmt(const char* f, double a) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, a);
+  return buf;
+}
+
+}  // namespace
+
+std::string formatTimeXyPhi(const std::vector<TimedPose>& poses) {
+  std::string out;
+  char buf[160];
+  for (const auto& p : poses) {
+    std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f %.9f\n", p.t, p.pose.x(), p.pose.y(),
+                  p.pose.z());
+    out += buf;
+  }
+  return out;
+}
+
+Simulation simulate(const Scenario& s, uint64_t seed) {
+  Simulation sim;
+  const auto map = scenarioMap(s);
+  const loc::OccupancyMap* world = map ? &*map : nullptr;
+  // Independent streams per sensor, so enabling one sensor does not change another's noise.
+  Rng rng_uwb(seed), rng_odo(seed ^ 0x9e3779b97f4a7c15ULL), rng_imu(seed ^ 0xbf58476d1ce4e5b9ULL),
+      rng_lidar(seed ^ 0x94d049bb133111ebULL);
+  const TrajectorySampler robot(s.trajectory);
+  const std::optional<TrajectorySampler> tag2 =
+      s.tag2.enabled ? std::optional<TrajectorySampler>(TrajectorySampler(s.tag2.trajectory))
+                     : std::nullopt;
+  const double t0 = s.start_time;
+
+  // Ground truth.
+  const auto gt_n = static_cast<long>(std::floor(s.duration * s.gt_rate + 1e-9));
+  for (long k = 0; k <= gt_n; ++k) {
+    const double t = k / s.gt_rate;
+    sim.ground_truth.push_back({t0 + t, robot.pose(t)});
+    if (tag2) sim.tag2_ground_truth.push_back({t0 + t, tag2->pose(t)});
+  }
+
+  // UWB: each anchor at its rate, staggered unless synchronous.
+  RangeModel model(s.uwb, world, rng_uwb);
+  const auto n_uwb = static_cast<long>(std::floor(s.duration * s.uwb.rate + 1e-9));
+  const double n_anchors = static_cast<double>(s.anchors.size());
+  for (long k = 0; k <= n_uwb; ++k) {
+    for (size_t i = 0; i < s.anchors.size(); ++i) {
+      const double offset =
+          s.uwb.synchronous ? 0.0 : static_cast<double>(i) / (s.uwb.rate * n_anchors);
+      const double t = k / s.uwb.rate + offset;
+      if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
+      const Eigen::Vector3d pose = robot.pose(t);
+      model.measure(t0 + t, 0, tagWorld(pose, s.uwb.tag), s.anchors[i], s.uwb.tag, sim.events,
+                    &sim.range_truth);
+      if (tag2) {
+        const Eigen::Vector3d p2 = tag2->pose(t);
+        const Eigen::Vector3d tag2_world(p2.x(), p2.y(), s.tag2.height);
+        const Eigen::Vector3d on_tag2(0.0, 0.0, s.tag2.height);
+        model.measure(t0 + t, 1, tag2_world, s.anchors[i], on_tag2, sim.events, &sim.range_truth);
+        if (i == 0) {  // once per round: the robot's tag ranges to the second tag
+          const uwb::Anchor mobile{uwb::kMobileAnchorBase + 1, tag2_world};
+          model.measure(t0 + t, 0, tagWorld(pose, s.uwb.tag), mobile, s.uwb.tag, sim.events,
+                        &sim.range_truth);
+        }
+      }
+    }
+  }
+
+  // Odometry: increments with noise growing with the motion.
+  if (s.odometry.rate > 0) {
+    std::normal_distribution<double> n01(0.0, 1.0);
+    const auto n = static_cast<long>(std::floor(s.duration * s.odometry.rate + 1e-9));
+    Eigen::Vector3d last = robot.pose(0.0);
+    for (long k = 1; k <= n; ++k) {
+      const double t = k / s.odometry.rate;
+      const Eigen::Vector3d now = robot.pose(t);
+      const Eigen::Vector3d d = loc::relativePose(last, now);
+      const double dist = d.head<2>().norm();
+      const double sxy = s.odometry.sigma_xy_per_m * dist;
+      const double sth =
+          s.odometry.sigma_theta_per_rad * std::abs(d.z()) + s.odometry.sigma_theta_per_m * dist;
+      const double gx = n01(rng_odo), gy = n01(rng_odo), gt = n01(rng_odo);
+      loc::OdometryIncrement inc;
+      inc.t = t0 + t;
+      inc.delta << d.x() + sxy * gx, d.y() + sxy * gy, d.z() + sth * gt;
+      sim.events.emplace_back(inc);
+      last = now;
+    }
+  }
+
+  // IMU: body-frame acceleration and yaw rate from the true motion, white noise and bias walk.
+  if (s.imu.rate > 0) {
+    std::normal_distribution<double> n01(0.0, 1.0);
+    const double dt = 1.0 / s.imu.rate;
+    const double h = 1e-3;  // differentiation step [s]
+    Eigen::Vector2d accel_bias = Eigen::Vector2d::Zero();
+    double gyro_bias = 0.0;
+    const auto n = static_cast<long>(std::floor(s.duration * s.imu.rate + 1e-9));
+    for (long k = 0; k <= n; ++k) {
+      const double t = k * dt;
+      const Eigen::Vector3d pm = robot.pose(std::max(t - h, 0.0)), p0 = robot.pose(t),
+                            pp = robot.pose(t + h);
+      const double span = t - h < 0.0 ? h : 2.0 * h;
+      const Eigen::Vector2d acc_world =
+          (pp.head<2>() - 2.0 * p0.head<2>() + robot.pose(t - h).head<2>()) / (h * h);
+      const double c = std::cos(p0.z()), sn = std::sin(p0.z());
+      const Eigen::Vector2d acc_body(c * acc_world.x() + sn * acc_world.y(),
+                                     -sn * acc_world.x() + c * acc_world.y());
+      const double yaw_rate = loc::wrapAngle(pp.z() - pm.z()) / span;
+      accel_bias +=
+          s.imu.accel_bias_walk * std::sqrt(dt) * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
+      gyro_bias += s.imu.gyro_bias_walk * std::sqrt(dt) * n01(rng_imu);
+      loc::ImuSample imu;
+      imu.t = t0 + t;
+      imu.accel =
+          acc_body + accel_bias + s.imu.accel_sigma * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
+      imu.gyro_z = yaw_rate + gyro_bias + s.imu.gyro_sigma * n01(rng_imu);
+      sim.events.emplace_back(imu);
+    }
+  }
+
+  // LiDAR: ray-cast scans with range noise.
+  if (s.lidar.enabled && world) {
+    std::normal_distribution<double> n01(0.0, 1.0);
+    const auto n = static_cast<long>(std::floor(s.duration * s.lidar.rate + 1e-9));
+    for (long k = 0; k <= n; ++k) {
+      const double t = k / s.lidar.rate;
+      loc::LaserScan scan = world->castScan(robot.pose(t), s.lidar.params);
+      scan.t = t0 + t;
+      for (size_t i = 0; i < scan.ranges.size(); ++i) {
+        const double g = n01(rng_lidar);
+        if (scan.valid[i])
+          scan.ranges[i] = static_cast<float>(scan.ranges[i] + s.lidar.params.sigma * g);
+      }
+      sim.events.emplace_back(std::move(scan));
+    }
+  }
+
+  std::stable_sort(sim.events.begin(), sim.events.end(),
+                   [](const loc::Event& a, const loc::Event& b) {
+                     return loc::eventTime(a) < loc::eventTime(b);
+                   });
+  return sim;
+}
+
+std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
+                                       const std::vector<TimedPose>& reference,
+                                       const std::vector<uwb::Anchor>& anchors,
+                                       const UwbSimSpec& uwb, const loc::OccupancyMap* map,
+                                       uint64_t seed, std::vector<RangeTruth>* truth) {
+  std::vector<loc::Event> out = events;
+  if (reference.size() < 2) return out;
+  Rng rng(seed);
+  RangeModel model(uwb, map, rng);
+  const double start = reference.front().t, end = reference.back().t;
+  const auto n = static_cast<long>(std::floor((end - start) * uwb.rate));
+  size_t j = 0;
+  for (long k = 0; k <= n; ++k) {
+    for (size_t i = 0; i < anchors.size(); ++i) {
+      const double offset =
+          uwb.synchronous ? 0.0 : static_cast<double>(i) / (uwb.rate * anchors.size());
+      const double t = start + k / uwb.rate + offset;
+      if (t > end || inAny(uwb.dropouts, t - start)) continue;
+      while (j + 2 < reference.size() && reference[j + 1].t < t) ++j;
+      const auto& a = reference[j];
+      const auto& b = reference[j + 1];
+      // Do not invent poses across gaps in the reference.
+      if (b.t - a.t > 2.0 || t < a.t || t > b.t) continue;
+      const double w = (t - a.t) / (b.t - a.t);
+      Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
+      pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
+      model.measure(t, 0, tagWorld(pose, uwb.tag), anchors[i], uwb.tag, out, truth);
+    }
+  }
+  std::stable_sort(out.begin(), out.end(), [](const loc::Event& x, const loc::Event& y) {
+    return loc::eventTime(x) < loc::eventTime(y);
+  });
+  return out;
+}
+
+std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir) {
+  Recording rec = readRawlog(req.rawlog);
+  const bool tum =
+      req.reference.size() > 4 && req.reference.substr(req.reference.size() - 4) == ".tum";
+  const auto reference =
+      readGroundTruth(req.reference, tum ? GroundTruthFormat::kTum : GroundTruthFormat::kTimeXyPhi);
+  const auto anchors = loadAnchorsCsv(req.anchors_csv);
+  UwbSimSpec uwb;
+  if (!req.scenario.empty()) uwb = loadScenario(req.scenario).uwb;
+
+  std::optional<loc::OccupancyMap> map;
+  if (req.map == "scans") {
+    // Map the recording's own scans at the reference poses.
+    std::vector<const loc::LaserScan*> scans;
+    std::vector<Eigen::Vector3d> poses;
+    size_t j = 0;
+    for (const auto& e : rec.events) {
+      const auto* scan = std::get_if<loc::LaserScan>(&e);
+      if (!scan) continue;
+      while (j + 1 < reference.size() && reference[j + 1].t <= scan->t) ++j;
+      if (std::abs(reference[j].t - scan->t) > 0.05) continue;
+      scans.push_back(scan);
+      poses.push_back(reference[j].pose);
+    }
+    map = loc::OccupancyMap::fromScans(scans, poses, req.map_resolution);
+  } else if (!req.map.empty()) {
+    try {
+      map = loc::OccupancyMap::load(req.map);
+    } catch (const std::runtime_error& e) {
+      throw InputError(e.what());
+    }
+  }
+  std::vector<RangeTruth> truth;
+  const auto events =
+      augmentWithUwb(rec.events, reference, anchors, uwb, map ? &*map : nullptr, req.seed, &truth);
+
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  const fs::path out(out_dir);
+  writeRawlog((out / "augmented.rawlog").string(), events);
+  writeFileAtomic((out / "reference.txt").string(), formatTimeXyPhi(reference));
+  std::string csv = "id,x,y,z\n";
+  char buf[200];
+  for (const auto& a : anchors) {
+    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
+                  a.position.z());
+    csv += buf;
+  }
+  writeFileAtomic((out / "anchors.csv").string(), csv);
+  std::string t = "t,tag_id,anchor_id,true_range,error,nlos\n";
+  long nlos = 0;
+  for (const auto& r : truth) {
+    std::snprintf(buf, sizeof buf, "%.6f,%d,%d,%.6f,%.6f,%d\n", r.t, r.tag_id, r.anchor_id,
+                  r.true_range, r.error, r.nlos ? 1 : 0);
+    t += buf;
+    nlos += r.nlos;
+  }
+  writeFileAtomic((out / "range_truth.csv").string(), t);
+  if (map) map->save((out / "map.gridmap.gz").string());
+  std::ostringstream ini;
+  ini << "# Written by 'uwbloc augment': " << truth.size() << " simulated ranges (" << nlos
+      << " NLOS), seed " << req.seed << "\n[dataset]\nname = augmented_"
+      << fs::path(req.rawlog).stem().string()
+      << "\nrawlog = augmented.rawlog\nground_truth = reference.txt\nground_truth_format = "
+         "time_xyphi\n";
+  if (map) ini << "map = map.gridmap.gz\n";
+  ini << "\n[anchors]\nanchors_csv = anchors.csv\n\n[tag]\nheight = " << fmt("%.4f", uwb.tag.z())
+      << "\nlever_arm_x = " << fmt("%.4f", uwb.tag.x())
+      << "\nlever_arm_y = " << fmt("%.4f", uwb.tag.y())
+      << "\n\n[bounds]\nrange_sigma = " << fmt("%.6g", uwb.sigma) << "\n";
+  const std::string manifest = (out / "dataset.ini").string();
+  writeFileAtomic(manifest, ini.str());
+  return manifest;
+}
+
+std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string& out_dir) {
+  const Simulation sim = simulate(s, seed);
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  const fs::path out(out_dir);
+  writeRawlog((out / "sim.rawlog").string(), sim.events);
+  writeFileAtomic((out / "ground_truth.tum").string(), formatTum(sim.ground_truth));
+  writeFileAtomic((out / "ground_truth.txt").string(), formatTimeXyPhi(sim.ground_truth));
+  if (!sim.tag2_ground_truth.empty())
+    writeFileAtomic((out / "tag2_ground_truth.tum").string(), formatTum(sim.tag2_ground_truth));
+
+  std::string csv = "id,x,y,z\n";
+  char buf[200];
+  for (const auto& a : s.anchors) {
+    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
+                  a.position.z());
+    csv += buf;
+  }
+  writeFileAtomic((out / "anchors.csv").string(), csv);
+
+  std::string truth = "t,tag_id,anchor_id,true_range,error,nlos\n";
+  for (const auto& r : sim.range_truth) {
+    std::snprintf(buf, sizeof buf, "%.6f,%d,%d,%.6f,%.6f,%d\n", r.t, r.tag_id, r.anchor_id,
+                  r.true_range, r.error, r.nlos ? 1 : 0);
+    truth += buf;
+  }
+  writeFileAtomic((out / "range_truth.csv").string(), truth);
+
+  if (s.uwb.features) {
+    std::string feat = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
+    for (const auto& e : sim.events) {
+      const auto* r = std::get_if<uwb::Range>(&e);
+      if (!r || r->tag_id != 0 || !r->rx_power_dbm) continue;
+      std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f\n", r->t, r->anchor_id, r->range,
+                    *r->rx_power_dbm, *r->fp_power_dbm);
+      feat += buf;
+    }
+    writeFileAtomic((out / "range_features.csv").string(), feat);
+  }
+
+  const auto map = scenarioMap(s);
+  if (map) map->save((out / "map.gridmap.gz").string());
+
+  std::ostringstream ini;
+  ini << "# Written by 'uwbloc simulate' from " << fs::path(s.path).filename().string() << ", seed "
+      << seed << "\n"
+      << "[dataset]\nname = sim_" << s.name
+      << "\nrawlog = sim.rawlog\nground_truth = ground_truth.tum\n"
+      << "ground_truth_format = tum\n";
+  if (map) ini << "map = map.gridmap.gz\n";
+  if (s.uwb.features) ini << "range_features = range_features.csv\n";
+  ini << "\n[anchors]\nanchors_csv = anchors.csv\n\n[tag]\nheight = " << fmt("%.4f", s.uwb.tag.z())
+      << "\nlever_arm_x = " << fmt("%.4f", s.uwb.tag.x())
+      << "\nlever_arm_y = " << fmt("%.4f", s.uwb.tag.y()) << "\n"
+      << "\n[bounds]\n# The simulated LOS range noise, for the Cramer-Rao bounds.\nrange_sigma = "
+      << fmt("%.6g", s.uwb.sigma) << "\n";
+  const std::string manifest = (out / "dataset.ini").string();
+  writeFileAtomic(manifest, ini.str());
+  return manifest;
+}
+
+}  // namespace uwbloc::data
