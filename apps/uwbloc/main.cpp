@@ -90,8 +90,9 @@ int runMethods(const CommonOptions& opt, const std::vector<std::string>& methods
     summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed, extra, printProgress));
   }
   const std::string out = opt.out.empty() ? "runs/" + ds.name : opt.out;
-  eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat});
-  std::cout << eval::formatTable(ds, summaries);
+  const eval::DatasetBounds bounds = eval::computeBounds(ds);
+  eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
+  std::cout << eval::formatTable(ds, summaries, bounds);
   std::cout << "Run directory: " << out << "\n";
   return 0;
 }
@@ -185,6 +186,10 @@ int main(int argc, char** argv) {
                       "map for NLOS: a map file, or 'scans' to map the recording's own scans at "
                       "the reference poses (default: no NLOS)");
   augment->add_option("--seed", aug.seed, "random seed")->capture_default_str();
+  augment
+      ->add_option("--max-gap", aug.max_gap,
+                   "no ranges where reference poses are further apart than this [s]")
+      ->capture_default_str();
 
   auto* list = app.add_subcommand("methods", "List the methods with their parameters and defaults");
 

@@ -90,6 +90,7 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   if (m.rawlog.empty()) throwInputError(path, 0, "missing key 'rawlog' in section [dataset]");
   m.ground_truth = pathKey("ground_truth");
   m.map = pathKey("map");
+  m.gt_max_gap = ini.getDouble("dataset", "gt_max_gap", m.gt_max_gap);
   m.range_features = pathKey("range_features");
   try {
     m.ground_truth_format = parseGroundTruthFormat(
@@ -152,6 +153,15 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
     BoundsSpec b;
     b.range_sigma = ini.getDouble("bounds", "range_sigma", b.range_sigma);
     b.accel_psd = ini.getDouble("bounds", "accel_psd", b.accel_psd);
+    b.motion = ini.getString("bounds", "motion", b.motion);
+    if (b.motion != "cv" && b.motion != "odometry")
+      throwInputError(path, ini.lineOf("bounds", "motion"),
+                      "[bounds] motion must be cv or odometry");
+    b.odom_sigma_xy_per_m = ini.getDouble("bounds", "odom_sigma_xy_per_m", b.odom_sigma_xy_per_m);
+    b.odom_sigma_theta_per_rad =
+        ini.getDouble("bounds", "odom_sigma_theta_per_rad", b.odom_sigma_theta_per_rad);
+    b.odom_sigma_theta_per_m =
+        ini.getDouble("bounds", "odom_sigma_theta_per_m", b.odom_sigma_theta_per_m);
     if (!(b.range_sigma > 0) || !(b.accel_psd > 0))
       throwInputError(path, ini.lineOf("bounds", "range_sigma"), "[bounds] values must be > 0");
     m.bounds = b;

@@ -239,7 +239,8 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
                                        const std::vector<TimedPose>& reference,
                                        const std::vector<uwb::Anchor>& anchors,
                                        const UwbSimSpec& uwb, const loc::OccupancyMap* map,
-                                       uint64_t seed, std::vector<RangeTruth>* truth) {
+                                       uint64_t seed, std::vector<RangeTruth>* truth,
+                                       double max_gap) {
   std::vector<loc::Event> out = events;
   if (reference.size() < 2) return out;
   Rng rng(seed);
@@ -257,7 +258,7 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
       const auto& a = reference[j];
       const auto& b = reference[j + 1];
       // Do not invent poses across gaps in the reference.
-      if (b.t - a.t > 2.0 || t < a.t || t > b.t) continue;
+      if (b.t - a.t > max_gap || t < a.t || t > b.t) continue;
       const double w = (t - a.t) / (b.t - a.t);
       Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
       pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
@@ -303,8 +304,8 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
     }
   }
   std::vector<RangeTruth> truth;
-  const auto events =
-      augmentWithUwb(rec.events, reference, anchors, uwb, map ? &*map : nullptr, req.seed, &truth);
+  const auto events = augmentWithUwb(rec.events, reference, anchors, uwb, map ? &*map : nullptr,
+                                     req.seed, &truth, req.max_gap);
 
   std::error_code ec;
   fs::create_directories(out_dir, ec);
@@ -336,6 +337,7 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
       << fs::path(req.rawlog).stem().string()
       << "\nrawlog = augmented.rawlog\nground_truth = reference.txt\nground_truth_format = "
          "time_xyphi\n";
+  ini << "gt_max_gap = " << fmt("%.3g", req.max_gap) << "\n";
   if (map) ini << "map = map.gridmap.gz\n";
   ini << "\n[anchors]\nanchors_csv = anchors.csv\n\n[tag]\nheight = " << fmt("%.4f", uwb.tag.z())
       << "\nlever_arm_x = " << fmt("%.4f", uwb.tag.x())
@@ -403,6 +405,11 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
       << "\nlever_arm_y = " << fmt("%.4f", s.uwb.tag.y()) << "\n"
       << "\n[bounds]\n# The simulated LOS range noise, for the Cramer-Rao bounds.\nrange_sigma = "
       << fmt("%.6g", s.uwb.sigma) << "\n";
+  if (s.odometry.rate > 0)
+    ini << "# For 'motion = odometry': the simulated odometry noise.\nodom_sigma_xy_per_m = "
+        << fmt("%.6g", s.odometry.sigma_xy_per_m)
+        << "\nodom_sigma_theta_per_rad = " << fmt("%.6g", s.odometry.sigma_theta_per_rad)
+        << "\nodom_sigma_theta_per_m = " << fmt("%.6g", s.odometry.sigma_theta_per_m) << "\n";
   const std::string manifest = (out / "dataset.ini").string();
   writeFileAtomic(manifest, ini.str());
   return manifest;

@@ -9,6 +9,7 @@
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/evaluation/bounds.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,6 +27,16 @@ long totalRejected(const MethodSummary& m) {
 nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; }
 
 }  // namespace
+
+DatasetBounds computeBounds(const data::Dataset& dataset) {
+  DatasetBounds b;
+  if (!dataset.manifest.bounds || dataset.ground_truth.size() < 2) return b;
+  const auto& spec = *dataset.manifest.bounds;
+  b.static_rmse = std::sqrt(staticCrlbSeries(dataset, spec.range_sigma).mean());
+  b.posterior_rmse = std::sqrt(posteriorCrlb(dataset, spec).mean(5.0));
+  b.motion = spec.motion;
+  return b;
+}
 
 std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory) {
   std::vector<data::TimedPose> poses;
@@ -48,10 +59,14 @@ std::string fileLabel(const std::string& spec) {
 }
 
 std::string formatMetricsJson(const data::Dataset& dataset,
-                              const std::vector<MethodSummary>& methods) {
+                              const std::vector<MethodSummary>& methods,
+                              const DatasetBounds& bounds) {
   nlohmann::json j;
   j["dataset"] = dataset.name;
   j["duration_s"] = number(dataset.duration());
+  j["crlb_rmse"] = number(bounds.static_rmse);
+  j["pcrb_rmse"] = number(bounds.posterior_rmse);
+  j["pcrb_motion"] = bounds.motion;
   j["methods"] = nlohmann::json::array();
   for (const auto& m : methods) {
     nlohmann::json e;
@@ -70,6 +85,8 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["max_2d"] = number(m.metrics.max_2d);
     e["ms_per_step"] = number(m.ms_per_step);
     e["realtime_factor"] = number(m.realtime_factor);
+    e["efficiency_crlb"] = number(m.metrics.rmse_2d / bounds.static_rmse);
+    e["efficiency_pcrb"] = number(m.metrics.rmse_2d / bounds.posterior_rmse);
     e["rejected"] = nlohmann::json::object();
     for (const auto& [reason, count] : m.rejected) e["rejected"][reason] = count;
     e["rejected_by_anchor"] = nlohmann::json::object();
@@ -104,7 +121,8 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
   return out.str();
 }
 
-std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods) {
+std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
+                        const DatasetBounds& bounds) {
   std::ostringstream out;
   char buf[512];
   std::snprintf(buf, sizeof buf, "Dataset %s: %.1f s, %zu events, %zu ground-truth poses\n",
@@ -136,6 +154,19 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
   }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
          "samples with an estimate within 1 s; xRT = real-time factor.\n";
+  if (std::isfinite(bounds.static_rmse)) {
+    std::snprintf(buf, sizeof buf,
+                  "Bounds: sqrt(mean static CRLB) %.4f m, sqrt(mean posterior CRLB, %s motion) "
+                  "%.4f m. Efficiency = rmse_2d / bound:\n",
+                  bounds.static_rmse, bounds.motion.c_str(), bounds.posterior_rmse);
+    out << buf;
+    for (const auto& m : methods) {
+      std::snprintf(buf, sizeof buf, "  %-22s vs CRLB %6.2f   vs PCRB %6.2f\n", m.spec.c_str(),
+                    m.metrics.rmse_2d / bounds.static_rmse,
+                    m.metrics.rmse_2d / bounds.posterior_rmse);
+      out << buf;
+    }
+  }
   for (const auto& m : methods) {
     if (m.rejected.empty()) continue;
     out << "  " << m.spec << " rejected:";
@@ -166,9 +197,10 @@ void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
   for (const auto& m : methods)
     data::writeFileAtomic((dir / (fileLabel(m.spec) + ".tum")).string(),
                           formatTrajectoryTum(m.trajectory));
-  data::writeFileAtomic((dir / "metrics.json").string(), formatMetricsJson(dataset, methods));
+  data::writeFileAtomic((dir / "metrics.json").string(),
+                        formatMetricsJson(dataset, methods, info.bounds));
   data::writeFileAtomic((dir / "metrics.csv").string(), formatMetricsCsv(dataset, methods));
-  data::writeFileAtomic((dir / "report.txt").string(), formatTable(dataset, methods));
+  data::writeFileAtomic((dir / "report.txt").string(), formatTable(dataset, methods, info.bounds));
 
   std::ostringstream cfg;
   cfg << "# Effective configuration of this run\n[run]\n"

@@ -76,8 +76,10 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
          sum_max = 0.0;
   for (int r = 0; r < repeat; ++r) {
     RunResult run = runMethod(dataset, spec, seed + static_cast<uint64_t>(r), extra, progress);
-    const auto errors = associate(run.trajectory, dataset.ground_truth);
-    const Metrics m = computeMetrics(errors, run.trajectory, dataset.ground_truth);
+    const double gap = dataset.manifest.gt_max_gap;
+    const auto errors = associate(run.trajectory, dataset.ground_truth, gap);
+    const Metrics m =
+        computeMetrics(errors, run.trajectory, dataset.ground_truth, std::max(1.0, gap / 2.0));
     rmse.push_back(m.rmse_2d);
     sum_x += m.rmse_x;
     sum_y += m.rmse_y;

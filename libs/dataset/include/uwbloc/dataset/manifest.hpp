@@ -5,6 +5,7 @@
 //   rawlog              = path                 (required)
 //   ground_truth        = path                 (optional)
 //   ground_truth_format = step_xyphi | time_xyphi | tum
+//   gt_max_gap          = 1.0                  (longest ground-truth gap to interpolate over [s])
 //   map                 = path                 (optional)
 //   range_features      = path                 (optional side file, see hanyang_import.hpp)
 //
@@ -22,6 +23,10 @@
 //   [bounds]                                   (optional: allows Cramér–Rao bounds)
 //   range_sigma = 0.1                          LOS range noise std [m]
 //   accel_psd = 0.1                            CV motion noise for the posterior bound [m^2/s^3]
+//   motion = cv | odometry                     motion model of the posterior bound
+//   odom_sigma_xy_per_m = 0.02                 odometry noise (motion = odometry)
+//   odom_sigma_theta_per_rad = 0.02
+//   odom_sigma_theta_per_m = 0.005
 //
 // Paths are relative to the manifest's folder; a path starting with "${DATA}/" is relative to
 // the data directory (see data_dir.hpp). Unknown keys are errors that name the line.
@@ -39,8 +44,12 @@ namespace uwbloc::data {
 enum class GroundTruthFormat { kNone, kStepXyPhi, kTimeXyPhi, kTum };
 
 struct BoundsSpec {
-  double range_sigma = 0.1;  ///< LOS range noise std [m]
-  double accel_psd = 0.1;    ///< white-acceleration density of the CV model [m^2/s^3]
+  double range_sigma = 0.1;                ///< LOS range noise std [m]
+  double accel_psd = 0.1;                  ///< white-acceleration density of the CV model [m^2/s^3]
+  std::string motion = "cv";               ///< motion model of the posterior bound: cv or odometry
+  double odom_sigma_xy_per_m = 0.02;       ///< odometry translation noise per metre
+  double odom_sigma_theta_per_rad = 0.02;  ///< odometry rotation noise per radian
+  double odom_sigma_theta_per_m = 0.005;   ///< odometry rotation noise per metre [rad/m]
 };
 
 struct Manifest {
@@ -49,6 +58,7 @@ struct Manifest {
   std::string rawlog;
   std::string ground_truth;
   GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
+  double gt_max_gap = 1.0;  ///< estimates are scored only between GT samples this close [s]
   std::string map;
   std::string range_features;
   std::vector<uwb::Anchor> anchors;  ///< already in the map/GT frame

@@ -44,7 +44,8 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
                                        const std::vector<TimedPose>& reference,
                                        const std::vector<uwb::Anchor>& anchors,
                                        const UwbSimSpec& uwb, const loc::OccupancyMap* map,
-                                       uint64_t seed, std::vector<RangeTruth>* truth = nullptr);
+                                       uint64_t seed, std::vector<RangeTruth>* truth = nullptr,
+                                       double max_gap = 2.0);
 
 struct AugmentRequest {
   std::string rawlog;            ///< recording with scans and odometry
@@ -53,6 +54,7 @@ struct AugmentRequest {
   std::string scenario;          ///< optional: take the [uwb] model from this scenario
   std::string map;               ///< optional map for NLOS; "scans" builds one from the scans
   double map_resolution = 0.05;  ///< for a map built from the scans [m]
+  double max_gap = 5.0;          ///< no ranges where reference poses are further apart [s]
   uint64_t seed = 1;
 };
 

@@ -2,6 +2,7 @@
 // and the console table. Every file is written atomically (temporary file, then rename).
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -10,16 +11,30 @@
 
 namespace uwbloc::eval {
 
+/// Bounds of a dataset whose manifest has a [bounds] section: the square roots of the mean
+/// position variance of the static CRLB (over the ground truth) and of the posterior CRLB (after
+/// a 5 s burn-in). NaN when unavailable. A method's efficiency is its 2D RMSE over a bound.
+struct DatasetBounds {
+  double static_rmse = NAN;
+  double posterior_rmse = NAN;
+  std::string motion;  ///< motion model of the posterior bound
+};
+
+/// Computes the bounds when the manifest allows it (all NaN otherwise).
+DatasetBounds computeBounds(const data::Dataset& dataset);
+
 /// "t x y z qx qy qz qw" rows, z = 0.
 std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory);
 
 /// metrics.json. The schema is stable: later work may add fields, never rename them.
 std::string formatMetricsJson(const data::Dataset& dataset,
-                              const std::vector<MethodSummary>& methods);
+                              const std::vector<MethodSummary>& methods,
+                              const DatasetBounds& bounds = {});
 std::string formatMetricsCsv(const data::Dataset& dataset,
                              const std::vector<MethodSummary>& methods);
 /// The comparison table printed on the console (and saved as report.txt).
-std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods);
+std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
+                        const DatasetBounds& bounds = {});
 
 /// A file name for a method spec ("uwb-kf:q=0.1" -> "uwb-kf_q-0.1").
 std::string fileLabel(const std::string& spec);
@@ -29,6 +44,7 @@ struct RunInfo {
   std::string data_dir;
   uint64_t seed = 1;
   int repeat = 1;
+  DatasetBounds bounds;
 };
 
 /// Writes every output file of a run into `out_dir` (created if needed).

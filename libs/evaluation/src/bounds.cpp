@@ -1,0 +1,124 @@
+#include "uwbloc/evaluation/bounds.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "uwbloc/evaluation/metrics.hpp"
+#include "uwbloc/localization/motion_models.hpp"
+#include "uwbloc/uwb/range_model.hpp"
+
+namespace uwbloc::eval {
+
+std::optional<Eigen::Matrix2d> staticCrlb(const std::vector<uwb::Anchor>& anchors,
+                                          const Eigen::Vector2d& p, double tag_z, double sigma) {
+  Eigen::Matrix2d info = Eigen::Matrix2d::Zero();
+  for (const auto& a : anchors) {
+    const Eigen::Vector3d d(p.x() - a.position.x(), p.y() - a.position.y(), tag_z - a.position.z());
+    const double n = d.norm();
+    if (n < 1e-9) continue;
+    const Eigen::Vector2d u = d.head<2>() / n;
+    info += u * u.transpose() / (sigma * sigma);
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(info);
+  if (es.eigenvalues()(0) <= 1e-12 * std::max(1.0, es.eigenvalues()(1))) return std::nullopt;
+  return info.inverse();
+}
+
+double BoundSeries::mean(double burn_in) const {
+  if (t.empty()) return NAN;
+  double sum = 0.0;
+  long n = 0;
+  for (size_t i = 0; i < t.size(); ++i)
+    if (t[i] - t.front() >= burn_in && std::isfinite(position_variance[i])) {
+      sum += position_variance[i];
+      ++n;
+    }
+  return n ? sum / static_cast<double>(n) : NAN;
+}
+
+namespace {
+
+// Tag height and lever arm of the robot's own tag, from the first such range.
+Eigen::Vector3d tagOnRobot(const data::Dataset& ds) {
+  for (const auto& e : ds.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->tag_id == 0) return r->tag_on_robot;
+  return Eigen::Vector3d::Zero();
+}
+
+}  // namespace
+
+BoundSeries staticCrlbSeries(const data::Dataset& ds, double sigma) {
+  BoundSeries out;
+  const Eigen::Vector3d tag = tagOnRobot(ds);
+  for (const auto& g : ds.ground_truth) {
+    const Eigen::Vector3d tag_world = uwb::tagPosition(g.pose, tag);
+    const auto c = staticCrlb(ds.anchors, tag_world.head<2>(), tag.z(), sigma);
+    out.t.push_back(g.t);
+    out.position_variance.push_back(c ? c->trace() : NAN);
+  }
+  return out;
+}
+
+BoundSeries posteriorCrlb(const data::Dataset& ds, const data::BoundsSpec& spec) {
+  BoundSeries out;
+  if (ds.ground_truth.size() < 2) return out;
+  const bool cv = spec.motion == "cv";
+  const int n = cv ? 4 : 3;
+  Eigen::MatrixXd j = Eigen::MatrixXd::Identity(n, n);  // prior: 1 m, 1 m/s (or 1 rad)
+  const double var_r = spec.range_sigma * spec.range_sigma;
+  double last_t = ds.ground_truth.front().t;
+  auto record = [&](double t) {
+    const Eigen::MatrixXd p = j.inverse();
+    out.t.push_back(t);
+    out.position_variance.push_back(p(0, 0) + p(1, 1));
+  };
+  for (const auto& e : ds.events) {
+    const double t = loc::eventTime(e);
+    if (t < ds.ground_truth.front().t || t > ds.ground_truth.back().t) continue;
+    if (cv && t > last_t) {
+      // Prediction with the linear CV model: J = (Q + F J^-1 F^T)^-1.
+      Eigen::Matrix4d f, q;
+      loc::constantVelocityModel(t - last_t, spec.accel_psd, f, q);
+      j = (q + f * j.inverse() * f.transpose()).inverse();
+      last_t = t;
+    }
+    if (const auto* o = std::get_if<loc::OdometryIncrement>(&e); o && !cv) {
+      const auto truth = interpolateGroundTruth(ds.ground_truth, t, 2.0);
+      if (!truth) continue;
+      // x_{k+1} = x_k (+) u: F = d/dx, G = d/du at the true pose, Q = G diag(sigma_u^2) G^T.
+      const double th = truth->z(), c = std::cos(th), s = std::sin(th);
+      const Eigen::Vector3d& u = o->delta;
+      Eigen::Matrix3d f = Eigen::Matrix3d::Identity();
+      f(0, 2) = -s * u.x() - c * u.y();
+      f(1, 2) = c * u.x() - s * u.y();
+      Eigen::Matrix3d g;
+      g << c, -s, 0, s, c, 0, 0, 0, 1;
+      const double dist = u.head<2>().norm();
+      const double sxy = std::max(spec.odom_sigma_xy_per_m * dist, 1e-6);
+      const double sth = std::max(
+          spec.odom_sigma_theta_per_rad * std::abs(u.z()) + spec.odom_sigma_theta_per_m * dist,
+          1e-6);
+      const Eigen::Matrix3d q =
+          g * Eigen::Vector3d(sxy * sxy, sxy * sxy, sth * sth).asDiagonal() * g.transpose();
+      j = (q + f * j.inverse() * f.transpose()).inverse();
+      continue;
+    }
+    const auto* r = std::get_if<uwb::Range>(&e);
+    if (!r || r->tag_id != 0) continue;
+    const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
+    const auto truth = interpolateGroundTruth(ds.ground_truth, t, 2.0);
+    if (!a || !truth) continue;
+    // Measurement information H^T H / sigma^2 at the true pose.
+    Eigen::RowVector3d hp;
+    uwb::predictRange(*truth, r->tag_on_robot, a->position, &hp);
+    Eigen::RowVectorXd h = Eigen::RowVectorXd::Zero(n);
+    h(0) = hp(0);
+    h(1) = hp(1);
+    if (!cv) h(2) = hp(2);
+    j += h.transpose() * h / var_r;
+    record(t);
+  }
+  return out;
+}
+
+}  // namespace uwbloc::eval
