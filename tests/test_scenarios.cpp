@@ -31,9 +31,12 @@ TEST_P(EveryScenario, RunsThroughEveryMethod) {
   std::vector<eval::MethodSummary> all;
   for (const auto& m : loc::Registry::builtin().names()) {
     all.push_back(eval::evaluateMethod(ds, m, 1, 1));
-    for (const auto& p : all.back().trajectory) ASSERT_TRUE(p.pose.allFinite()) << m;
-    if (m.rfind("uwb-", 0) == 0)
+    for (const auto& p : all.back().trajectory) {
+      ASSERT_TRUE(p.pose.allFinite()) << m;
+    }
+    if (m.rfind("uwb-", 0) == 0) {
       EXPECT_GT(all.back().metrics.coverage, 0.9) << GetParam() << " " << m;
+    }
   }
   std::printf("%s", eval::formatTable(ds, all, eval::computeBounds(ds)).c_str());
 }

@@ -96,9 +96,7 @@ ImportSummary importCarmen(const std::string& log_path, const std::string& out_d
   std::stable_sort(reference.begin(), reference.end(),
                    [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
 
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  ensureDirectory(out_dir);
   const fs::path out(out_dir);
   writeRawlog((out / "carmen.rawlog").string(), events);
   writeFileAtomic((out / "reference.txt").string(), formatTimeXyPhi(reference));

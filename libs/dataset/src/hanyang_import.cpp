@@ -129,20 +129,13 @@ ImportSummary importHanyang(const std::string& run_dir, const std::string& out_d
   });
   if (gt.empty()) throwInputError(trajectory, 0, "no reference rows");
 
-  fs::create_directories(out_dir, ec);
-  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  ensureDirectory(out_dir);
   const fs::path out(out_dir);
   writeRawlog((out / "uwb.rawlog").string(), events);
   writeFileAtomic((out / "ground_truth.tum").string(), formatTum(gt));
 
-  std::string csv = "id,x,y,z\n";
+  writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
   char buf[256];
-  for (const auto& a : anchors) {
-    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
-                  a.position.z());
-    csv += buf;
-  }
-  writeFileAtomic((out / "anchors.csv").string(), csv);
 
   std::string feat = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
   for (const auto& f : features) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <set>
 #include <sstream>
@@ -55,6 +56,17 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
   });
   if (anchors.empty()) throwInputError(path, 0, "no anchors");
   return anchors;
+}
+
+std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors) {
+  std::string csv = "id,x,y,z\n";
+  char buf[200];
+  for (const auto& a : anchors) {
+    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
+                  a.position.z());
+    csv += buf;
+  }
+  return csv;
 }
 
 namespace {

@@ -307,20 +307,12 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
   const auto events = augmentWithUwb(rec.events, reference, anchors, uwb, map ? &*map : nullptr,
                                      req.seed, &truth, req.max_gap);
 
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  ensureDirectory(out_dir);
   const fs::path out(out_dir);
   writeRawlog((out / "augmented.rawlog").string(), events);
   writeFileAtomic((out / "reference.txt").string(), formatTimeXyPhi(reference));
-  std::string csv = "id,x,y,z\n";
-  char buf[200];
-  for (const auto& a : anchors) {
-    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
-                  a.position.z());
-    csv += buf;
-  }
-  writeFileAtomic((out / "anchors.csv").string(), csv);
+  writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
+  char buf[256];
   std::string t = "t,tag_id,anchor_id,true_range,error,nlos\n";
   long nlos = 0;
   for (const auto& r : truth) {
@@ -350,9 +342,7 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
 
 std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string& out_dir) {
   const Simulation sim = simulate(s, seed);
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  ensureDirectory(out_dir);
   const fs::path out(out_dir);
   writeRawlog((out / "sim.rawlog").string(), sim.events);
   writeFileAtomic((out / "ground_truth.tum").string(), formatTum(sim.ground_truth));
@@ -360,14 +350,8 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
   if (!sim.tag2_ground_truth.empty())
     writeFileAtomic((out / "tag2_ground_truth.tum").string(), formatTum(sim.tag2_ground_truth));
 
-  std::string csv = "id,x,y,z\n";
-  char buf[200];
-  for (const auto& a : s.anchors) {
-    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
-                  a.position.z());
-    csv += buf;
-  }
-  writeFileAtomic((out / "anchors.csv").string(), csv);
+  writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(s.anchors));
+  char buf[256];
 
   std::string truth = "t,tag_id,anchor_id,true_range,error,nlos\n";
   for (const auto& r : sim.range_truth) {

@@ -61,6 +61,12 @@ double parseNumber(const std::string& text, const std::string& file, int line,
   return v;
 }
 
+void ensureDirectory(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::create_directories(path, ec);
+  if (ec) throwInputError(path, 0, "cannot create folder: " + ec.message());
+}
+
 void writeFileAtomic(const std::string& path, const std::string& contents) {
   const std::string tmp = path + ".tmp";
   {

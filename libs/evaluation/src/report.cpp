@@ -190,9 +190,7 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
 
 void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
                        const std::vector<MethodSummary>& methods, const RunInfo& info) {
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) data::throwInputError(out_dir, 0, "cannot create output folder: " + ec.message());
+  data::ensureDirectory(out_dir);
   const fs::path dir(out_dir);
   for (const auto& m : methods)
     data::writeFileAtomic((dir / (fileLabel(m.spec) + ".tum")).string(),

@@ -73,6 +73,8 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir);
 
 /// Loads anchors from a CSV of "id,x,y,z" rows (a header row is allowed).
 std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path);
+/// The same CSV, with its header.
+std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors);
 
 GroundTruthFormat parseGroundTruthFormat(const std::string& text);
 const char* toString(GroundTruthFormat f);

@@ -16,6 +16,9 @@ void forEachRow(const std::string& path,
 double parseNumber(const std::string& text, const std::string& file, int line,
                    const std::string& field);
 
+/// Creates a folder (and its parents), or throws InputError naming it.
+void ensureDirectory(const std::string& path);
+
 /// Writes `contents` to `path` atomically: a temporary file beside it, then a rename.
 void writeFileAtomic(const std::string& path, const std::string& contents);
 
