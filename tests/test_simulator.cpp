@@ -164,8 +164,8 @@ TEST(Simulator, SecondTagRangesCarryItsId) {
       other += r->tag_id == 1;
       mobile += r->anchor_id == uwb::kMobileAnchorBase + 1;
     }
-  EXPECT_GT(own, 5000);
-  EXPECT_GT(other, 5000);
+  EXPECT_EQ(own, 2 * (20 * 90 + 1) + (10 * 90 + 1));  // anchors 1, 2 at 20 Hz, anchor 3 at 10 Hz
+  EXPECT_EQ(other, own);
   EXPECT_GT(mobile, 1500);
   // The second tag stands still during its pauses.
   EXPECT_NEAR((sim.tag2_ground_truth[200].pose - sim.tag2_ground_truth[500].pose).norm(), 0.0,
@@ -236,4 +236,14 @@ TEST(OccupancyMap, LoadsRosYamlPngAndGridmap) {
   check(loc::OccupancyMap::load(png, 0.05, {yaml.bounds().xmin, yaml.bounds().ymin}), "png");
   test::expectErrorMentions<std::runtime_error>(
       [&] { loc::OccupancyMap::load((dir / "none.png").string()); }, {"none.png", "not found"});
+}
+
+TEST(Simulator, PerAnchorRates) {
+  const auto s = data::loadScenario(scenarioPath("corridor.ini"));  // rate 20 Hz, rate_3 = 10 Hz
+  const auto sim = data::simulate(s, 1);
+  std::map<int, long> own;
+  for (const auto& e : sim.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->tag_id == 0) ++own[r->anchor_id];
+  EXPECT_NEAR(own[1], 20 * 90 + 1, 1);
+  EXPECT_NEAR(own[3], 10 * 90 + 1, 1);
 }

@@ -222,6 +222,13 @@ Scenario loadScenario(const std::string& path) {
   readDouble(ini, "uwb", "outlier_max", u.outlier_max);
   readDouble(ini, "uwb", "zero_prob", u.zero_prob);
   for (const auto& key : ini.keys("uwb"))
+    if (key.rfind("rate_", 0) == 0) {
+      const double rate = ini.getDouble("uwb", key);
+      if (!(rate > 0)) throwInputError(path, ini.lineOf("uwb", key), "'" + key + "' must be > 0");
+      u.anchor_rate[static_cast<int>(
+          parseNumber(key.substr(5), path, ini.lineOf("uwb", key), key))] = rate;
+    }
+  for (const auto& key : ini.keys("uwb"))
     if (key.rfind("bias_", 0) == 0)
       u.anchor_bias[static_cast<int>(parseNumber(key.substr(5), path, ini.lineOf("uwb", key),
                                                  key))] = ini.getDouble("uwb", key);

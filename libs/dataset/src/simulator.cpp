@@ -131,15 +131,17 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
     if (tag2) sim.tag2_ground_truth.push_back({t0 + t, tag2->pose(t)});
   }
 
-  // UWB: each anchor at its rate, staggered unless synchronous.
+  // UWB: each anchor at its rate, staggered unless synchronous. Generated anchor by anchor and
+  // sorted below; the draws follow the anchor order, so they are reproducible.
   RangeModel model(s.uwb, world, rng_uwb);
-  const auto n_uwb = static_cast<long>(std::floor(s.duration * s.uwb.rate + 1e-9));
   const double n_anchors = static_cast<double>(s.anchors.size());
-  for (long k = 0; k <= n_uwb; ++k) {
-    for (size_t i = 0; i < s.anchors.size(); ++i) {
-      const double offset =
-          s.uwb.synchronous ? 0.0 : static_cast<double>(i) / (s.uwb.rate * n_anchors);
-      const double t = k / s.uwb.rate + offset;
+  for (size_t i = 0; i < s.anchors.size(); ++i) {
+    const auto rate_it = s.uwb.anchor_rate.find(s.anchors[i].id);
+    const double rate = rate_it != s.uwb.anchor_rate.end() ? rate_it->second : s.uwb.rate;
+    const auto n_uwb = static_cast<long>(std::floor(s.duration * rate + 1e-9));
+    const double offset = s.uwb.synchronous ? 0.0 : static_cast<double>(i) / (rate * n_anchors);
+    for (long k = 0; k <= n_uwb; ++k) {
+      const double t = k / rate + offset;
       if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
       const Eigen::Vector3d pose = robot.pose(t);
       model.measure(t0 + t, 0, tagWorld(pose, s.uwb.tag), s.anchors[i], s.uwb.tag, sim.events,
@@ -157,6 +159,8 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
       }
     }
   }
+  std::stable_sort(sim.range_truth.begin(), sim.range_truth.end(),
+                   [](const RangeTruth& a, const RangeTruth& b) { return a.t < b.t; });
 
   // Odometry: increments with noise growing with the motion.
   if (s.odometry.rate > 0) {
