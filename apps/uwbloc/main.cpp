@@ -72,20 +72,31 @@ struct CommonOptions {
   int repeat = 1;
 };
 
-int runMethods(const CommonOptions& opt, const std::vector<std::string>& methods) {
+int runMethods(const CommonOptions& opt, const std::vector<std::string>& methods,
+               bool all_methods = false) {
   const std::string data_dir = data::resolveDataDir(opt.data_dir);
   const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);
   std::fprintf(stderr, "Loading %s\n", manifest.c_str());
   const data::Dataset ds = data::loadDataset(manifest, data_dir);
-  // Check every method spec before spending time on any run.
+  // Check every method spec before spending time on any run. With 'all', methods whose needs
+  // (ranges, scans, odometry, map) the dataset lacks are skipped; named ones are errors.
+  std::vector<std::string> runnable;
   for (const auto& m : methods) {
-    loc::EstimatorContext ctx;
-    ctx.anchors = ds.anchors;
+    const std::string missing = eval::missingNeeds(ds, m);
+    if (!missing.empty()) {
+      if (!all_methods)
+        throw loc::ParamError("method '" + m + "' needs what dataset '" + ds.name +
+                              "' lacks: " + missing);
+      std::fprintf(stderr, "Skipping %s: the dataset has no %s\n", m.c_str(), missing.c_str());
+      continue;
+    }
     loc::Registry::builtin().create(
-        m, ctx, extraParams(loc::MethodSpec::parse(m).name, opt.config, opt.sets));
+        m, eval::makeContext(ds, opt.seed),
+        extraParams(loc::MethodSpec::parse(m).name, opt.config, opt.sets));
+    runnable.push_back(m);
   }
   std::vector<eval::MethodSummary> summaries;
-  for (const auto& m : methods) {
+  for (const auto& m : runnable) {
     const auto extra = extraParams(loc::MethodSpec::parse(m).name, opt.config, opt.sets);
     summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed, extra, printProgress));
   }
@@ -196,7 +207,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     if (*run) return runMethods(run_opt, {method});
-    if (*compare) return runMethods(cmp_opt, splitMethods(methods));
+    if (*compare) return runMethods(cmp_opt, splitMethods(methods), methods == "all");
     if (*import) {
       const std::string src = data::resolveInputPath(source, data::resolveDataDir(import_data_dir));
       if (format == "hanyang") {

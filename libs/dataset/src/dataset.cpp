@@ -39,6 +39,16 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
   return attached;
 }
 
+bool Dataset::provides(const std::string& need) const {
+  if (need == "map") return map != nullptr;
+  for (const auto& e : events) {
+    if (need == "ranges" && std::holds_alternative<uwb::Range>(e)) return true;
+    if (need == "odometry" && std::holds_alternative<loc::OdometryIncrement>(e)) return true;
+    if (need == "scans" && std::holds_alternative<loc::LaserScan>(e)) return true;
+  }
+  return false;
+}
+
 Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir) {
   Dataset ds;
   ds.manifest = loadManifest(manifest_path, data_dir);
@@ -61,6 +71,13 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   if (!ds.manifest.ground_truth.empty())
     ds.ground_truth =
         readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format, rec.step_times);
+  if (!ds.manifest.map.empty()) {
+    try {
+      ds.map = std::make_shared<loc::OccupancyMap>(loc::OccupancyMap::load(ds.manifest.map));
+    } catch (const std::runtime_error& e) {
+      throw InputError(manifest_path + ": [dataset] map: " + e.what());
+    }
+  }
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
   return ds;

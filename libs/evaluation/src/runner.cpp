@@ -7,15 +7,30 @@
 
 namespace uwbloc::eval {
 
-RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
-                    const loc::ParamSet& extra, const ProgressFn& progress) {
+loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed) {
   loc::EstimatorContext ctx;
   ctx.anchors = dataset.anchors;
   ctx.seed = seed;
+  ctx.map = dataset.map;
   if (!dataset.ground_truth.empty()) {
     ctx.initial_pose = dataset.ground_truth.front().pose;
     ctx.initial_time = dataset.ground_truth.front().t;
   }
+  return ctx;
+}
+
+std::string missingNeeds(const data::Dataset& dataset, const std::string& spec) {
+  const auto* info = loc::Registry::builtin().find(loc::MethodSpec::parse(spec).name);
+  std::string missing;
+  if (!info) return missing;
+  for (const auto& need : info->needs)
+    if (!dataset.provides(need)) missing += (missing.empty() ? "" : ", ") + need;
+  return missing;
+}
+
+RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
+                    const loc::ParamSet& extra, const ProgressFn& progress) {
+  const loc::EstimatorContext ctx = makeContext(dataset, seed);
   auto estimator = loc::Registry::builtin().create(spec, ctx, extra);
 
   RunResult result;

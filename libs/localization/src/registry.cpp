@@ -7,12 +7,15 @@
 
 namespace uwbloc::loc {
 
+void addLidarMethods(Registry& r);  // lidar_methods.cpp
+
 namespace {
 
 MethodInfo multilaterationMethod(const std::string& name, const std::string& description,
                                  MultilaterationSolver solver) {
   return makeMethod<MultilaterationEstimator, MultilaterationParams>(
-      name, description, [solver](const MultilaterationParams& p, const EstimatorContext& ctx) {
+      name, description, {"ranges"},
+      [solver](const MultilaterationParams& p, const EstimatorContext& ctx) {
         return std::make_unique<MultilaterationEstimator>(solver, p, ctx);
       });
 }
@@ -26,11 +29,14 @@ Registry makeBuiltin() {
   r.add(multilaterationMethod("uwb-chan", "UWB only: Chan's two-step WLS per epoch",
                               MultilaterationSolver::kChan));
   r.add(makeMethod<UwbKf, UwbKfParams>(
-      "uwb-kf", "UWB only: constant-velocity KF on multilateration fixes (loosely coupled)"));
+      "uwb-kf", "UWB only: constant-velocity KF on multilateration fixes (loosely coupled)",
+      {"ranges"}));
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
-      "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)"));
+      "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
+      {"ranges"}));
   r.add(makeMethod<OdometryEstimator, OdometryParams>(
-      "odom", "Odometry only: dead reckoning from the first ground-truth pose"));
+      "odom", "Odometry only: dead reckoning from the first ground-truth pose", {"odometry"}));
+  addLidarMethods(r);
   return r;
 }
 

@@ -181,6 +181,16 @@ LaserScan OccupancyMap::castScan(const Eigen::Vector3d& robot_pose,
   return scan;
 }
 
+std::vector<Eigen::Vector2d> OccupancyMap::freeCells() const {
+  std::vector<Eigen::Vector2d> out;
+  const auto& g = *grid_;
+  for (unsigned cy = 0; cy < g.getSizeY(); ++cy)
+    for (unsigned cx = 0; cx < g.getSizeX(); ++cx)
+      if (g.getCell(static_cast<int>(cx), static_cast<int>(cy)) > 0.6f)
+        out.emplace_back(g.idx2x(cx), g.idx2y(cy));
+  return out;
+}
+
 Rect OccupancyMap::bounds() const {
   return {grid_->getXMin(), grid_->getYMin(), grid_->getXMax(), grid_->getYMax()};
 }

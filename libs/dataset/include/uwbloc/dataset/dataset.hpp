@@ -2,25 +2,30 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/manifest.hpp"
 #include "uwbloc/localization/events.hpp"
+#include "uwbloc/localization/lidar/occupancy_map.hpp"
 
 namespace uwbloc::data {
 
 struct Dataset {
   Manifest manifest;
   std::string name;
-  std::vector<loc::Event> events;       ///< time-ordered
-  std::vector<uwb::Anchor> anchors;     ///< map/GT frame
-  std::vector<TimedPose> ground_truth;  ///< may be empty
-  std::map<std::string, long> counts;   ///< what the reader found
+  std::vector<loc::Event> events;                ///< time-ordered
+  std::vector<uwb::Anchor> anchors;              ///< map/GT frame
+  std::vector<TimedPose> ground_truth;           ///< may be empty
+  std::shared_ptr<const loc::OccupancyMap> map;  ///< the manifest's map, when it names one
+  std::map<std::string, long> counts;            ///< what the reader found
   double start_time = 0.0;
   double end_time = 0.0;
   double duration() const { return end_time - start_time; }
+  /// Whether the stream has "ranges", "odometry", "scans", or the dataset a "map".
+  bool provides(const std::string& need) const;
 };
 
 /// Loads the manifest, the rawlog, the ground truth and the optional range-feature side file.

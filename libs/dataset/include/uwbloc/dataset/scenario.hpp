@@ -27,12 +27,12 @@ struct TrajectorySpec {
 };
 
 struct UwbSimSpec {
-  double rate = 10.0;  ///< ranges per second per anchor [Hz]
+  double rate = 10.0;                 ///< ranges per second per anchor [Hz]
   std::map<int, double> anchor_rate;  ///< per-anchor overrides of `rate` [Hz]
-  bool synchronous = false;  ///< all anchors at the same instants (else staggered)
-  double sigma = 0.1;        ///< LOS noise std [m]
-  double sigma_per_m = 0.0;  ///< added to sigma per metre of range
-  double bias = 0.0;         ///< LOS noise mean [m]
+  bool synchronous = false;           ///< all anchors at the same instants (else staggered)
+  double sigma = 0.1;                 ///< LOS noise std [m]
+  double sigma_per_m = 0.0;           ///< added to sigma per metre of range
+  double bias = 0.0;                  ///< LOS noise mean [m]
   std::string nlos_distribution = "exponential";  ///< exponential | uniform | constant
   double nlos_mean = 0.5;                         ///< mean positive NLOS bias [m]
   std::vector<Interval> dropouts;                 ///< no ranges inside these

@@ -27,6 +27,12 @@ struct RunResult {
   uint64_t seed = 0;
 };
 
+/// What a method is given: anchors, map, the first ground-truth pose as start pose, the seed.
+loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed);
+
+/// The dataset lacks something the method needs: returns what (empty when nothing is missing).
+std::string missingNeeds(const data::Dataset& dataset, const std::string& spec);
+
 /// Replays the dataset through one method. The start pose and time given to the method are the
 /// first ground-truth pose, when there is one.
 RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -15,6 +16,8 @@
 
 namespace uwbloc::loc {
 
+class OccupancyMap;
+
 struct PoseEstimate {
   double t = 0.0;
   Eigen::Vector3d pose = Eigen::Vector3d::Zero();  ///< (x, y, theta), map frame
@@ -22,7 +25,18 @@ struct PoseEstimate {
   bool heading_valid = true;  ///< false when the method does not observe heading
 };
 
+/// What a method decided about one range (methods that judge NLOS record these).
+struct RangeDecision {
+  double t = 0.0;
+  int anchor_id = 0;
+  double range = 0.0;
+  bool flag_lidar = false;    ///< the pose-based test flagged it
+  bool flag_raycast = false;  ///< the map ray-cast flagged it
+  bool used = false;          ///< it weighted the particles
+};
+
 struct EstimatorStatistics {
+  std::vector<RangeDecision> range_decisions;
   std::map<std::string, long> rejected;                           ///< reason -> count
   std::map<int, std::map<std::string, long>> rejected_by_anchor;  ///< anchor -> reason -> count
   long accepted_ranges = 0;
@@ -36,6 +50,7 @@ struct EstimatorContext {
   std::optional<Eigen::Vector3d> initial_pose;
   double initial_time = 0.0;
   uint64_t seed = 1;
+  std::shared_ptr<const OccupancyMap> map;  ///< the dataset's map, when it has one
 };
 
 class Estimator {

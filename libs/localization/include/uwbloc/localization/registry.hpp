@@ -24,6 +24,8 @@ struct MethodSpec {
 struct MethodInfo {
   std::string name;
   std::string description;
+  /// What a dataset must provide: any of "ranges", "odometry", "scans", "map".
+  std::vector<std::string> needs;
   std::vector<ParamInfo> defaults;
   std::function<std::unique_ptr<Estimator>(ParamSet&, const EstimatorContext&)> make;
 };
@@ -50,12 +52,13 @@ class Registry {
 /// Registration helper: a method whose estimator is constructed as Est(Params, context).
 template <class Est, class Params>
 MethodInfo makeMethod(
-    std::string name, std::string description,
+    std::string name, std::string description, std::vector<std::string> needs,
     std::function<std::unique_ptr<Estimator>(const Params&, const EstimatorContext&)> factory =
         nullptr) {
   MethodInfo info;
   info.name = name;
   info.description = std::move(description);
+  info.needs = std::move(needs);
   info.defaults = describeParams(Params{});
   info.make = [name, factory](ParamSet& set, const EstimatorContext& ctx) {
     Params params;

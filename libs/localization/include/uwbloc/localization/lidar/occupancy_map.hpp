@@ -67,6 +67,8 @@ class OccupancyMap {
   /// return inside the range limits are marked invalid.
   LaserScan castScan(const Eigen::Vector3d& robot_pose, const LidarParams& lidar) const;
 
+  /// Centres of the free cells (P(free) above 0.6), for global initialisation.
+  std::vector<Eigen::Vector2d> freeCells() const;
   Rect bounds() const;
   double resolution() const;
   const mrpt::maps::COccupancyGridMap2D& grid() const { return *grid_; }

@@ -1,0 +1,48 @@
+// Likelihood-field model of a 2D scan on an occupancy grid (Thrun et al., ch. 6.4; the model
+// behind MRPT's COccupancyGridMap2D::lmLikelihoodField_Thrun): each ray endpoint scores
+//   p = z_hit N(d; 0, sigma_hit) + z_rand / max_range,
+// d the distance from the endpoint to the nearest occupied cell, precomputed once for the whole
+// grid, so a particle's score is a few table look-ups per ray.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "uwbloc/localization/events.hpp"
+#include "uwbloc/localization/lidar/occupancy_map.hpp"
+
+namespace uwbloc::loc {
+
+struct LikelihoodFieldParams {
+  double sigma_hit = 0.2;   ///< endpoint noise [m]
+  double z_hit = 0.9;       ///< weight of the Gaussian part
+  double z_rand = 0.1;      ///< weight of the uniform part
+  double max_dist = 0.2;    ///< distances are capped here [m] (MRPT: LF_maxCorrsDistance)
+  int decimation = 20;      ///< use every n-th ray
+  double max_range = 30.0;  ///< rays at or beyond this are ignored [m]
+  double min_range = 0.05;  ///< rays below this are ignored [m]
+};
+
+class LikelihoodField {
+ public:
+  LikelihoodField(const OccupancyMap& map, const LikelihoodFieldParams& params);
+
+  /// Distance [m] from (x, y) to the nearest occupied cell (max_dist outside the map).
+  double distance(double x, double y) const;
+  /// Stores the scan's usable ray endpoints in the robot frame (no allocation after the first).
+  void setScan(const LaserScan& scan);
+  size_t rays() const { return ex_.size(); }
+  /// Log-likelihood of the stored scan from robot pose (x, y, theta).
+  double logLikelihood(double x, double y, double theta) const;
+
+ private:
+  LikelihoodFieldParams params_;
+  double x0_ = 0, y0_ = 0, res_ = 0.05;
+  int nx_ = 0, ny_ = 0;
+  std::vector<float> log_p_;  ///< per cell: log(z_hit N(d) + z_rand / max_range)
+  std::vector<float> dist_;   ///< per cell: distance to the nearest occupied cell
+  double log_p_far_ = 0.0;
+  std::vector<double> ex_, ey_;  ///< current scan endpoints in the robot frame
+};
+
+}  // namespace uwbloc::loc

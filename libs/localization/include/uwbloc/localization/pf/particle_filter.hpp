@@ -1,0 +1,113 @@
+// Particle-filter core over (x, y, theta). Particles live in contiguous arrays (structure of
+// arrays) sized once; predict, weight, resample and estimate allocate nothing per step.
+// Resampling is a strategy (multinomial, systematic, stratified, residual), and the same slot
+// takes a swarm optimiser that moves particles instead of copying them (PF-IBAS).
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace uwbloc::loc {
+
+using Rng = std::mt19937_64;
+
+/// Particle states and log-weights, one contiguous array per component.
+struct ParticleSet {
+  std::vector<double> x, y, theta, log_w;
+  size_t size() const { return x.size(); }
+  void resize(size_t n) {
+    x.resize(n);
+    y.resize(n);
+    theta.resize(n);
+    log_w.assign(n, 0.0);
+  }
+};
+
+/// Log-likelihood of the current measurement for particle i.
+using LogLikelihood = std::function<double(double x, double y, double theta)>;
+
+/// Odometry motion model with MRPT-like noise (Thrun's sample_motion_model_odometry):
+/// the increment is split into rot1, trans, rot2, each perturbed with std
+///   rot: alpha1 |rot| + alpha2 trans,   trans: alpha3 trans + alpha4 (|rot1| + |rot2|)
+/// plus small floors so that a standing robot's cloud does not collapse.
+struct MotionNoise {
+  double alpha1 = 0.05;      ///< rotation noise per radian of rotation
+  double alpha2 = 0.01;      ///< rotation noise per metre of translation [rad/m]
+  double alpha3 = 0.05;      ///< translation noise per metre
+  double alpha4 = 0.01;      ///< translation noise per radian [m/rad]
+  double min_xy = 0.005;     ///< translation noise floor per step [m]
+  double min_theta = 0.002;  ///< rotation noise floor per step [rad]
+};
+
+/// Where the resampling step goes: copy particles (classic strategies) or move them.
+class ResamplingStrategy {
+ public:
+  virtual ~ResamplingStrategy() = default;
+  virtual const char* name() const = 0;
+  /// Called when the filter decides to resample. `weights` are normalised. Classic strategies
+  /// fill `indices` with n draws and the filter copies; a strategy that moves particles itself
+  /// (and then returns false) may evaluate `fitness`.
+  virtual bool selectIndices(const std::vector<double>& weights, std::vector<int>& indices,
+                             Rng& rng) = 0;
+};
+
+/// "multinomial", "systematic", "stratified" or "residual"; throws std::invalid_argument.
+std::unique_ptr<ResamplingStrategy> makeResampler(const std::string& name);
+
+struct ParticleFilterParams {
+  int particles = 300;
+  double ess_threshold = 0.5;  ///< resample when ESS / N falls below this
+  MotionNoise motion;
+};
+
+struct ParticleEstimate {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  double ess = 0.0;  ///< effective sample size after the last weighting
+};
+
+class ParticleFilter {
+ public:
+  ParticleFilter(const ParticleFilterParams& params, std::unique_ptr<ResamplingStrategy> resampler,
+                 uint64_t seed);
+
+  /// Tracking: particles from N(pose, diag(sigma^2)).
+  void initGaussian(const Eigen::Vector3d& pose, const Eigen::Vector3d& sigma);
+  /// Tracking from a box: uniform in pose +- half_width.
+  void initUniformBox(const Eigen::Vector3d& pose, const Eigen::Vector3d& half_width);
+  /// Global: uniform over the given free cells (x, y), heading uniform.
+  void initUniform(const std::vector<Eigen::Vector2d>& free_cells, double cell_size);
+
+  /// Moves every particle by the odometry increment with sampled noise.
+  void predict(const Eigen::Vector3d& delta);
+  /// Adds the measurement's log-likelihood to every particle's log-weight.
+  void weight(const LogLikelihood& log_likelihood);
+  /// Normalises the weights; resamples when ESS / N < threshold. Returns true if it resampled.
+  bool normalizeAndResample();
+  /// Weighted mean (angle on the circle) and covariance.
+  ParticleEstimate estimate() const;
+
+  bool initialised() const { return initialised_; }
+  const ParticleSet& particles() const { return set_; }
+  ParticleSet& particles() { return set_; }
+  const std::vector<double>& weights() const { return w_; }
+  Rng& rng() { return rng_; }
+  long resamples() const { return resamples_; }
+
+ private:
+  ParticleFilterParams params_;
+  std::unique_ptr<ResamplingStrategy> resampler_;
+  Rng rng_;
+  ParticleSet set_, scratch_;
+  std::vector<double> w_;
+  std::vector<int> indices_;
+  double last_ess_ = 0.0;
+  long resamples_ = 0;
+  bool initialised_ = false;
+};
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,97 @@
+#include "uwbloc/localization/lidar/likelihood_field.hpp"
+
+#include <mrpt/maps/COccupancyGridMap2D.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace uwbloc::loc {
+
+LikelihoodField::LikelihoodField(const OccupancyMap& map, const LikelihoodFieldParams& params)
+    : params_(params) {
+  const auto& g = map.grid();
+  nx_ = static_cast<int>(g.getSizeX());
+  ny_ = static_cast<int>(g.getSizeY());
+  res_ = g.getResolution();
+  x0_ = g.getXMin();
+  y0_ = g.getYMin();
+  // Two-pass chamfer distance transform (8-neighbour, weights 1 and sqrt 2), in cells.
+  const float inf = 1e9f;
+  std::vector<float> d(static_cast<size_t>(nx_) * ny_, inf);
+  for (int cy = 0; cy < ny_; ++cy)
+    for (int cx = 0; cx < nx_; ++cx)
+      if (g.getCell(cx, cy) < 0.5f) d[static_cast<size_t>(cy) * nx_ + cx] = 0.0f;
+  const float diag = std::sqrt(2.0f);
+  auto at = [&](int cx, int cy) -> float& { return d[static_cast<size_t>(cy) * nx_ + cx]; };
+  for (int cy = 0; cy < ny_; ++cy)
+    for (int cx = 0; cx < nx_; ++cx) {
+      float& v = at(cx, cy);
+      if (cx > 0) v = std::min(v, at(cx - 1, cy) + 1.0f);
+      if (cy > 0) v = std::min(v, at(cx, cy - 1) + 1.0f);
+      if (cx > 0 && cy > 0) v = std::min(v, at(cx - 1, cy - 1) + diag);
+      if (cx + 1 < nx_ && cy > 0) v = std::min(v, at(cx + 1, cy - 1) + diag);
+    }
+  for (int cy = ny_ - 1; cy >= 0; --cy)
+    for (int cx = nx_ - 1; cx >= 0; --cx) {
+      float& v = at(cx, cy);
+      if (cx + 1 < nx_) v = std::min(v, at(cx + 1, cy) + 1.0f);
+      if (cy + 1 < ny_) v = std::min(v, at(cx, cy + 1) + 1.0f);
+      if (cx + 1 < nx_ && cy + 1 < ny_) v = std::min(v, at(cx + 1, cy + 1) + diag);
+      if (cx > 0 && cy + 1 < ny_) v = std::min(v, at(cx - 1, cy + 1) + diag);
+    }
+  dist_.resize(d.size());
+  log_p_.resize(d.size());
+  const double norm = 1.0 / (std::sqrt(2.0 * M_PI) * params_.sigma_hit);
+  const double uniform = params_.z_rand / params_.max_range;
+  auto logp = [&](double dist) {
+    return std::log(params_.z_hit * norm *
+                        std::exp(-0.5 * dist * dist / (params_.sigma_hit * params_.sigma_hit)) +
+                    uniform);
+  };
+  for (size_t i = 0; i < d.size(); ++i) {
+    dist_[i] = static_cast<float>(std::min<double>(d[i] * res_, params_.max_dist));
+    log_p_[i] = static_cast<float>(logp(dist_[i]));
+  }
+  log_p_far_ = logp(params_.max_dist);
+}
+
+double LikelihoodField::distance(double x, double y) const {
+  const int cx = static_cast<int>(std::floor((x - x0_) / res_));
+  const int cy = static_cast<int>(std::floor((y - y0_) / res_));
+  if (cx < 0 || cy < 0 || cx >= nx_ || cy >= ny_) return params_.max_dist;
+  return dist_[static_cast<size_t>(cy) * nx_ + cx];
+}
+
+void LikelihoodField::setScan(const LaserScan& scan) {
+  ex_.clear();
+  ey_.clear();
+  const int step = std::max(1, params_.decimation);
+  const double cs = std::cos(scan.sensor_pose.z()), ss = std::sin(scan.sensor_pose.z());
+  for (size_t i = 0; i < scan.ranges.size(); i += static_cast<size_t>(step)) {
+    const double r = scan.ranges[i];
+    if (!scan.valid[i] || r < params_.min_range || r >= params_.max_range ||
+        r >= scan.max_range - 1e-3)
+      continue;
+    const double a = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
+    const double sx = r * std::cos(a), sy = r * std::sin(a);
+    ex_.push_back(scan.sensor_pose.x() + cs * sx - ss * sy);
+    ey_.push_back(scan.sensor_pose.y() + ss * sx + cs * sy);
+  }
+}
+
+double LikelihoodField::logLikelihood(double x, double y, double theta) const {
+  const double c = std::cos(theta), s = std::sin(theta);
+  double sum = 0.0;
+  for (size_t i = 0; i < ex_.size(); ++i) {
+    const double wx = x + c * ex_[i] - s * ey_[i];
+    const double wy = y + s * ex_[i] + c * ey_[i];
+    const int cx = static_cast<int>(std::floor((wx - x0_) / res_));
+    const int cy = static_cast<int>(std::floor((wy - y0_) / res_));
+    sum += (cx < 0 || cy < 0 || cx >= nx_ || cy >= ny_)
+               ? log_p_far_
+               : static_cast<double>(log_p_[static_cast<size_t>(cy) * nx_ + cx]);
+  }
+  return sum;
+}
+
+}  // namespace uwbloc::loc

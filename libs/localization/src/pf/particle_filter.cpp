@@ -1,0 +1,244 @@
+#include "uwbloc/localization/pf/particle_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+#include "uwbloc/localization/events.hpp"
+
+namespace uwbloc::loc {
+
+namespace {
+
+// n independent draws from the weights. Sorted uniforms come from normalised cumulative sums of
+// n + 1 exponential spacings, so one pass over the CDF suffices and nothing is allocated: a
+// first pass sums the spacings, a second (same random stream, replayed) places the pointers.
+class Multinomial : public ResamplingStrategy {
+ public:
+  const char* name() const override { return "multinomial"; }
+  bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
+    const size_t n = w.size();
+    std::exponential_distribution<double> e(1.0);
+    const Rng start = rng;
+    double total = 0.0;
+    for (size_t i = 0; i <= n; ++i) total += e(rng);
+    Rng replay = start;
+    e.reset();
+    double s = 0.0, cdf = w[0];
+    size_t j = 0;
+    for (size_t i = 0; i < n; ++i) {
+      s += e(replay);
+      const double target = s / total;
+      while (target > cdf && j + 1 < n) cdf += w[++j];
+      idx[i] = static_cast<int>(j);
+    }
+    return true;
+  }
+};
+
+// One uniform offset, n evenly spaced pointers.
+class Systematic : public ResamplingStrategy {
+ public:
+  const char* name() const override { return "systematic"; }
+  bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
+    const size_t n = w.size();
+    const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / n)(rng);
+    double cdf = w[0];
+    size_t j = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double target = u0 + static_cast<double>(i) / n;
+      while (target > cdf && j + 1 < n) cdf += w[++j];
+      idx[i] = static_cast<int>(j);
+    }
+    return true;
+  }
+};
+
+// One uniform draw inside each of n equal strata.
+class Stratified : public ResamplingStrategy {
+ public:
+  const char* name() const override { return "stratified"; }
+  bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
+    const size_t n = w.size();
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    double cdf = w[0];
+    size_t j = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double target = (static_cast<double>(i) + u(rng)) / n;
+      while (target > cdf && j + 1 < n) cdf += w[++j];
+      idx[i] = static_cast<int>(j);
+    }
+    return true;
+  }
+};
+
+// floor(n w_i) copies of each particle, the remainder drawn systematically from the residuals.
+class Residual : public ResamplingStrategy {
+ public:
+  const char* name() const override { return "residual"; }
+  bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
+    const size_t n = w.size();
+    size_t k = 0;
+    double residual_total = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      const auto copies = static_cast<size_t>(std::floor(n * w[i]));
+      for (size_t c = 0; c < copies && k < n; ++c) idx[k++] = static_cast<int>(i);
+      residual_total += n * w[i] - static_cast<double>(copies);
+    }
+    const size_t rest = n - k;
+    if (rest == 0) return true;
+    const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / rest)(rng);
+    double cdf = (n * w[0] - std::floor(n * w[0])) / residual_total;
+    size_t j = 0;
+    for (size_t i = 0; i < rest; ++i) {
+      const double target = u0 + static_cast<double>(i) / rest;
+      while (target > cdf && j + 1 < n) {
+        ++j;
+        cdf += (n * w[j] - std::floor(n * w[j])) / residual_total;
+      }
+      idx[k++] = static_cast<int>(j);
+    }
+    return true;
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<ResamplingStrategy> makeResampler(const std::string& name) {
+  if (name == "multinomial") return std::make_unique<Multinomial>();
+  if (name == "systematic") return std::make_unique<Systematic>();
+  if (name == "stratified") return std::make_unique<Stratified>();
+  if (name == "residual") return std::make_unique<Residual>();
+  throw std::invalid_argument("unknown resampler '" + name +
+                              "' (known: multinomial, systematic, stratified, residual)");
+}
+
+ParticleFilter::ParticleFilter(const ParticleFilterParams& params,
+                               std::unique_ptr<ResamplingStrategy> resampler, uint64_t seed)
+    : params_(params), resampler_(std::move(resampler)), rng_(seed) {
+  const auto n = static_cast<size_t>(std::max(1, params_.particles));
+  set_.resize(n);
+  scratch_.resize(n);
+  w_.assign(n, 1.0 / n);
+  indices_.assign(n, 0);
+}
+
+void ParticleFilter::initGaussian(const Eigen::Vector3d& pose, const Eigen::Vector3d& sigma) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t i = 0; i < set_.size(); ++i) {
+    set_.x[i] = pose.x() + sigma.x() * g(rng_);
+    set_.y[i] = pose.y() + sigma.y() * g(rng_);
+    set_.theta[i] = wrapAngle(pose.z() + sigma.z() * g(rng_));
+    set_.log_w[i] = 0.0;
+  }
+  initialised_ = true;
+}
+
+void ParticleFilter::initUniformBox(const Eigen::Vector3d& pose, const Eigen::Vector3d& half) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (size_t i = 0; i < set_.size(); ++i) {
+    set_.x[i] = pose.x() + half.x() * u(rng_);
+    set_.y[i] = pose.y() + half.y() * u(rng_);
+    set_.theta[i] = wrapAngle(pose.z() + half.z() * u(rng_));
+    set_.log_w[i] = 0.0;
+  }
+  initialised_ = true;
+}
+
+void ParticleFilter::initUniform(const std::vector<Eigen::Vector2d>& free_cells, double cell) {
+  if (free_cells.empty()) throw std::invalid_argument("global initialisation: no free cells");
+  std::uniform_int_distribution<size_t> pick(0, free_cells.size() - 1);
+  std::uniform_real_distribution<double> jitter(-0.5 * cell, 0.5 * cell), ang(-M_PI, M_PI);
+  for (size_t i = 0; i < set_.size(); ++i) {
+    const auto& c = free_cells[pick(rng_)];
+    set_.x[i] = c.x() + jitter(rng_);
+    set_.y[i] = c.y() + jitter(rng_);
+    set_.theta[i] = ang(rng_);
+    set_.log_w[i] = 0.0;
+  }
+  initialised_ = true;
+}
+
+void ParticleFilter::predict(const Eigen::Vector3d& delta) {
+  // Decompose the increment into rotate - translate - rotate (Thrun et al., Table 5.6).
+  const double trans = delta.head<2>().norm();
+  const double rot1 = trans < 1e-6 ? 0.0 : std::atan2(delta.y(), delta.x());
+  const double rot2 = wrapAngle(delta.z() - rot1);
+  const auto& m = params_.motion;
+  const double s_rot1 = m.alpha1 * std::abs(rot1) + m.alpha2 * trans + m.min_theta;
+  const double s_rot2 = m.alpha1 * std::abs(rot2) + m.alpha2 * trans + m.min_theta;
+  const double s_trans = m.alpha3 * trans + m.alpha4 * (std::abs(rot1) + std::abs(rot2)) + m.min_xy;
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t i = 0; i < set_.size(); ++i) {
+    const double r1 = rot1 + s_rot1 * g(rng_);
+    const double tr = trans + s_trans * g(rng_);
+    const double r2 = rot2 + s_rot2 * g(rng_);
+    const double heading = set_.theta[i] + r1;
+    set_.x[i] += tr * std::cos(heading);
+    set_.y[i] += tr * std::sin(heading);
+    set_.theta[i] = wrapAngle(heading + r2);
+  }
+}
+
+void ParticleFilter::weight(const LogLikelihood& log_likelihood) {
+  for (size_t i = 0; i < set_.size(); ++i) {
+    const double l = log_likelihood(set_.x[i], set_.y[i], set_.theta[i]);
+    set_.log_w[i] += std::isfinite(l) ? l : -1e3;  // a non-finite likelihood counts as tiny
+  }
+}
+
+bool ParticleFilter::normalizeAndResample() {
+  const size_t n = set_.size();
+  // Normalise in log space: w_i = exp(l_i - max) / sum.
+  const double max_l = *std::max_element(set_.log_w.begin(), set_.log_w.end());
+  double sum = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    w_[i] = std::exp(set_.log_w[i] - max_l);
+    sum += w_[i];
+  }
+  if (!(sum > 0.0) || !std::isfinite(sum)) {
+    std::fill(w_.begin(), w_.end(), 1.0 / n);  // degenerate: fall back to uniform weights
+  } else {
+    for (auto& w : w_) w /= sum;
+  }
+  double sq = 0.0;
+  for (double w : w_) sq += w * w;
+  last_ess_ = 1.0 / sq;
+  for (size_t i = 0; i < n; ++i) set_.log_w[i] = std::log(std::max(w_[i], 1e-300));
+  if (last_ess_ >= params_.ess_threshold * static_cast<double>(n)) return false;
+  if (!resampler_->selectIndices(w_, indices_, rng_)) return true;
+  for (size_t i = 0; i < n; ++i) {
+    const auto j = static_cast<size_t>(indices_[i]);
+    scratch_.x[i] = set_.x[j];
+    scratch_.y[i] = set_.y[j];
+    scratch_.theta[i] = set_.theta[j];
+    scratch_.log_w[i] = 0.0;
+  }
+  std::swap(set_, scratch_);
+  std::fill(w_.begin(), w_.end(), 1.0 / n);
+  ++resamples_;
+  return true;
+}
+
+ParticleEstimate ParticleFilter::estimate() const {
+  ParticleEstimate e;
+  double sx = 0, sy = 0, sc = 0, ss = 0;
+  for (size_t i = 0; i < set_.size(); ++i) {
+    sx += w_[i] * set_.x[i];
+    sy += w_[i] * set_.y[i];
+    sc += w_[i] * std::cos(set_.theta[i]);
+    ss += w_[i] * std::sin(set_.theta[i]);
+  }
+  e.mean << sx, sy, std::atan2(ss, sc);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < set_.size(); ++i) {
+    const Eigen::Vector3d d(set_.x[i] - sx, set_.y[i] - sy, wrapAngle(set_.theta[i] - e.mean.z()));
+    cov += w_[i] * d * d.transpose();
+  }
+  e.covariance = cov;
+  e.ess = last_ess_;
+  return e;
+}
+
+}  // namespace uwbloc::loc
