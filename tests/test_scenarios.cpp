@@ -30,6 +30,7 @@ TEST_P(EveryScenario, RunsThroughEveryMethod) {
   const auto ds = simulated(GetParam(), 1);
   std::vector<eval::MethodSummary> all;
   for (const auto& m : loc::Registry::builtin().names()) {
+    if (!eval::missingNeeds(ds, m).empty()) continue;  // e.g. LiDAR methods in an open field
     all.push_back(eval::evaluateMethod(ds, m, 1, 1));
     for (const auto& p : all.back().trajectory) {
       ASSERT_TRUE(p.pose.allFinite()) << m;
