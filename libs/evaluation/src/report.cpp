@@ -10,6 +10,7 @@
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/evaluation/bounds.hpp"
+#include "uwbloc/evaluation/nlos_score.hpp"
 
 namespace fs = std::filesystem;
 
@@ -98,6 +99,14 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
     for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
+    if (!m.range_decisions.empty() && !dataset.ground_truth.empty()) {
+      const auto sc = scoreNlos(dataset, m.range_decisions);
+      for (auto [key, d] : {std::pair{"lidar", &sc.lidar}, std::pair{"raycast", &sc.raycast}})
+        e["nlos_detection"][key] = {{"bad", d->bad},
+                                    {"good", d->good},
+                                    {"recall", number(d->recall())},
+                                    {"false_alarm", number(d->false_alarm())}};
+    }
     e["parameters"] = nlohmann::json::object();
     for (const auto& p : m.parameters) e["parameters"][p.key] = p.value;
     j["methods"].push_back(e);
@@ -166,6 +175,17 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                     m.metrics.rmse_2d / bounds.posterior_rmse);
       out << buf;
     }
+  }
+  for (const auto& m : methods) {
+    if (m.range_decisions.empty() || dataset.ground_truth.empty()) continue;
+    const auto sc = scoreNlos(dataset, m.range_decisions);
+    std::snprintf(buf, sizeof buf,
+                  "  %s NLOS detection (range error > 0.5 m vs ground truth: %ld bad, %ld good): "
+                  "LiDAR-pose test recall %.3f, false alarm %.3f; map ray-cast recall %.3f, "
+                  "false alarm %.3f\n",
+                  m.spec.c_str(), sc.lidar.bad, sc.lidar.good, sc.lidar.recall(),
+                  sc.lidar.false_alarm(), sc.raycast.recall(), sc.raycast.false_alarm());
+    out << buf;
   }
   for (const auto& m : methods) {
     if (m.rejected.empty()) continue;

@@ -114,6 +114,7 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
       s.rejected_by_anchor = run.statistics.rejected_by_anchor;
       s.accepted_ranges = run.statistics.accepted_ranges;
       s.resets = run.statistics.resets;
+      s.range_decisions = run.statistics.range_decisions;
     }
   }
   const double n = repeat;

@@ -51,7 +51,8 @@ struct MethodSummary {
   long accepted_ranges = 0;
   long resets = 0;
   std::vector<loc::ParamInfo> parameters;
-  std::vector<loc::PoseEstimate> trajectory;  ///< of the first run
+  std::vector<loc::PoseEstimate> trajectory;        ///< of the first run
+  std::vector<loc::RangeDecision> range_decisions;  ///< of the first run (NLOS-judging methods)
 };
 
 /// Runs `spec` `repeat` times with seeds seed, seed+1, ... and summarises.

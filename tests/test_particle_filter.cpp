@@ -1,0 +1,128 @@
+// Particle-filter core: resamplers, estimate on the circle, degenerate weights, motion model,
+// and the likelihood field.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "uwbloc/localization/lidar/likelihood_field.hpp"
+#include "uwbloc/localization/pf/particle_filter.hpp"
+
+using namespace uwbloc::loc;
+
+class Resamplers : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(Resamplers, KeepTheCountAndAreUnbiased) {
+  // E[copies of particle i] = n w_i for every unbiased scheme. 4000 seeded trials.
+  const std::vector<double> w{0.30, 0.05, 0.15, 0.0, 0.25, 0.01, 0.09, 0.05, 0.06, 0.04};
+  const size_t n = w.size();
+  auto resampler = makeResampler(GetParam());
+  Rng rng(17);
+  std::vector<int> idx(n);
+  std::vector<double> copies(n, 0.0);
+  const int trials = 4000;
+  for (int t = 0; t < trials; ++t) {
+    std::fill(idx.begin(), idx.end(), -1);
+    ASSERT_TRUE(resampler->selectIndices(w, idx, rng));
+    for (int i : idx) {
+      ASSERT_GE(i, 0);
+      ASSERT_LT(i, static_cast<int>(n));
+      copies[static_cast<size_t>(i)] += 1.0;
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const double mean = copies[i] / trials, expected = n * w[i];
+    // Multinomial variance n w (1 - w) bounds the others'; 4.5 standard errors.
+    const double se = std::sqrt(n * w[i] * (1 - w[i]) / trials) + 1e-9;
+    EXPECT_NEAR(mean, expected, 4.5 * se + 1e-12) << GetParam() << " particle " << i;
+  }
+  EXPECT_EQ(copies[3], 0.0) << "a zero-weight particle was drawn";
+}
+
+INSTANTIATE_TEST_SUITE_P(All, Resamplers,
+                         ::testing::Values("multinomial", "systematic", "stratified", "residual"));
+
+TEST(ParticleFilter, UnknownResamplerIsAnError) {
+  EXPECT_THROW(makeResampler("ibas-not-yet"), std::invalid_argument);
+}
+
+TEST(ParticleFilter, EstimateAveragesTheAngleOnTheCircle) {
+  ParticleFilterParams p;
+  p.particles = 2;
+  ParticleFilter pf(p, makeResampler("systematic"), 1);
+  pf.initGaussian({0, 0, 0}, {0, 0, 0});
+  auto& s = pf.particles();
+  s.x = {1.0, 3.0};
+  s.y = {0.0, 2.0};
+  s.theta = {M_PI - 0.1, -M_PI + 0.1};
+  pf.normalizeAndResample();  // equal weights: ESS = N, no resampling
+  const auto e = pf.estimate();
+  EXPECT_NEAR(e.mean.x(), 2.0, 1e-12);
+  EXPECT_NEAR(e.mean.y(), 1.0, 1e-12);
+  EXPECT_NEAR(std::abs(e.mean.z()), M_PI, 1e-12);  // not 0
+  EXPECT_NEAR(e.covariance(2, 2), 0.01, 1e-12);
+  EXPECT_NEAR(e.covariance(0, 0), 1.0, 1e-12);
+}
+
+TEST(ParticleFilter, DegenerateWeightsStayFiniteAndNormalised) {
+  ParticleFilterParams p;
+  p.particles = 50;
+  ParticleFilter pf(p, makeResampler("residual"), 3);
+  pf.initGaussian({1, 2, 0.5}, {0.1, 0.1, 0.1});
+  pf.weight([](double, double, double) { return -std::numeric_limits<double>::infinity(); });
+  pf.weight([](double, double, double) { return std::nan(""); });
+  pf.normalizeAndResample();
+  double sum = 0.0;
+  for (double w : pf.weights()) {
+    ASSERT_TRUE(std::isfinite(w));
+    sum += w;
+  }
+  EXPECT_NEAR(sum, 1.0, 1e-12);
+  EXPECT_TRUE(pf.estimate().mean.allFinite());
+}
+
+TEST(ParticleFilter, ResamplesOnlyBelowTheEssThreshold) {
+  ParticleFilterParams p;
+  p.particles = 100;
+  p.ess_threshold = 0.5;
+  ParticleFilter pf(p, makeResampler("systematic"), 5);
+  pf.initGaussian({0, 0, 0}, {1, 1, 0.1});
+  pf.weight([](double x, double, double) { return -0.01 * x * x; });  // mild: ESS stays high
+  EXPECT_FALSE(pf.normalizeAndResample());
+  pf.weight([](double x, double, double) { return -50.0 * x * x; });  // sharp
+  EXPECT_TRUE(pf.normalizeAndResample());
+  EXPECT_EQ(pf.particles().size(), 100u);
+  EXPECT_LT(std::abs(pf.estimate().mean.x()), 0.1);
+}
+
+TEST(ParticleFilter, MotionModelMovesTheCloudByTheIncrement) {
+  ParticleFilterParams p;
+  p.particles = 4000;
+  ParticleFilter pf(p, makeResampler("systematic"), 9);
+  pf.initGaussian({1.0, 1.0, M_PI / 2}, {0, 0, 0});
+  for (int i = 0; i < 10; ++i) pf.predict({0.1, 0.0, 0.0});  // 1 m forward, facing +y
+  pf.normalizeAndResample();
+  const auto e = pf.estimate();
+  EXPECT_NEAR(e.mean.x(), 1.0, 0.01);
+  EXPECT_NEAR(e.mean.y(), 2.0, 0.01);
+  EXPECT_NEAR(e.mean.z(), M_PI / 2, 0.01);
+  EXPECT_GT(e.covariance(1, 1), 0.0);  // noise grew with the motion
+}
+
+TEST(LikelihoodField, DistancesAndPeakAtTheTruePose) {
+  const auto map = OccupancyMap::fromRectangles({0, 0, 10, 6}, {{4, 2, 5, 3}}, 0.05);
+  LikelihoodFieldParams params;
+  params.max_dist = 1.0;
+  params.decimation = 4;
+  LikelihoodField field(map, params);
+  EXPECT_NEAR(field.distance(2.0, 0.5), 0.5, 0.06);  // to the wall y = 0
+  EXPECT_NEAR(field.distance(4.5, 3.4), 0.4, 0.06);  // above the obstacle
+  EXPECT_NEAR(field.distance(2.0, 3.0), 1.0, 1e-9);  // capped
+  const Eigen::Vector3d truth(2.0, 2.5, 0.3);
+  field.setScan(map.castScan(truth, LidarParams::preset("sick_lms")));
+  ASSERT_GT(field.rays(), 50u);
+  const double at_truth = field.logLikelihood(truth.x(), truth.y(), truth.z());
+  for (const Eigen::Vector3d d :
+       {Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0, -0.2, 0), Eigen::Vector3d(0, 0, 0.1)})
+    EXPECT_GT(at_truth,
+              field.logLikelihood(truth.x() + d.x(), truth.y() + d.y(), truth.z() + d.z()));
+}
