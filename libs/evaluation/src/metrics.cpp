@@ -72,6 +72,7 @@ Metrics computeMetrics(const std::vector<ErrorSample>& errors,
   if (errors.empty()) {
     // Nothing to score: the metrics are undefined, not zero (null in metrics.json).
     m.rmse_x = m.rmse_y = m.rmse_2d = m.mae_2d = m.median_2d = m.p95_2d = m.max_2d = NAN;
+    m.final_2d = NAN;
     return m;
   }
   double sx = 0.0, sy = 0.0, sa = 0.0;
@@ -89,6 +90,7 @@ Metrics computeMetrics(const std::vector<ErrorSample>& errors,
   m.rmse_y = std::sqrt(sy / n);
   m.rmse_2d = std::sqrt(m.rmse_x * m.rmse_x + m.rmse_y * m.rmse_y);
   m.mae_2d = sa / n;
+  m.final_2d = errors.back().e2d;
   m.median_2d = quantile(e2d, 0.5);
   m.p95_2d = quantile(e2d, 0.95);
   for (int i = 0; i <= 20; ++i) {

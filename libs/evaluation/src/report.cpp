@@ -84,6 +84,7 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["median_2d"] = number(m.metrics.median_2d);
     e["p95_2d"] = number(m.metrics.p95_2d);
     e["max_2d"] = number(m.metrics.max_2d);
+    e["final_2d"] = number(m.metrics.final_2d);
     e["ms_per_step"] = number(m.ms_per_step);
     e["realtime_factor"] = number(m.realtime_factor);
     e["efficiency_crlb"] = number(m.metrics.rmse_2d / bounds.static_rmse);

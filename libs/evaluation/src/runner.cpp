@@ -88,7 +88,7 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
   double seconds = 0.0;
   long steps = 0;
   double sum_x = 0.0, sum_y = 0.0, sum_2d = 0.0, sum_mae = 0.0, sum_med = 0.0, sum_p95 = 0.0,
-         sum_max = 0.0;
+         sum_max = 0.0, sum_final = 0.0;
   for (int r = 0; r < repeat; ++r) {
     RunResult run = runMethod(dataset, spec, seed + static_cast<uint64_t>(r), extra, progress);
     const double gap = dataset.manifest.gt_max_gap;
@@ -103,6 +103,7 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
     sum_med += m.median_2d;
     sum_p95 += m.p95_2d;
     sum_max += m.max_2d;
+    sum_final += m.final_2d;
     seconds += run.processing_seconds;
     steps += m.steps;
     if (r == 0) {
@@ -126,6 +127,7 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
   s.metrics.median_2d = sum_med / n;
   s.metrics.p95_2d = sum_p95 / n;
   s.metrics.max_2d = sum_max / n;
+  s.metrics.final_2d = sum_final / n;
   double var = 0.0;
   for (double v : rmse) var += (v - s.metrics.rmse_2d) * (v - s.metrics.rmse_2d);
   s.rmse_2d_std = repeat > 1 ? std::sqrt(var / (n - 1)) : 0.0;

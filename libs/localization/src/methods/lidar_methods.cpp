@@ -1,4 +1,5 @@
 // Registration of the LiDAR-based methods.
+#include "uwbloc/localization/methods/lidar_icp.hpp"
 #include "uwbloc/localization/methods/pf_localizer.hpp"
 #include "uwbloc/localization/registry.hpp"
 
@@ -28,6 +29,9 @@ MethodInfo pfMethod(const std::string& name, const std::string& description,
 }  // namespace
 
 void addLidarMethods(Registry& r) {
+  r.add(makeMethod<LidarIcp, LidarIcpParams>(
+      "lidar-icp", "LiDAR odometry: scan-to-scan ICP seeded by odometry, from the start pose",
+      {"scans"}));
   r.add(pfMethod("lidar-mcl", "LiDAR only: Monte-Carlo localisation on the map's likelihood field",
                  {"scans", "odometry", "map"}, true, false, "none"));
   r.add(pfMethod("fused-naive",

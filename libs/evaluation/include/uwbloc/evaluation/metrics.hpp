@@ -34,6 +34,7 @@ struct Metrics {
   double rmse_x = 0.0, rmse_y = 0.0;
   double rmse_2d = 0.0;  ///< sqrt(rmse_x^2 + rmse_y^2), the PF-IBAS paper's RMSE_z
   double mae_2d = 0.0, median_2d = 0.0, p95_2d = 0.0, max_2d = 0.0;
+  double final_2d = 0.0;  ///< error of the last scored estimate: the drift of odometry-like methods
   std::vector<std::pair<double, double>> cdf;  ///< (error [m], fraction <= error), 21 points
 };
 

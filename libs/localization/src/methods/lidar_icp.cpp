@@ -1,0 +1,84 @@
+#include "uwbloc/localization/methods/lidar_icp.hpp"
+
+#include <cmath>
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/poses/CPosePDF.h>
+#include <mrpt/slam/CICP.h>
+
+namespace uwbloc::loc {
+
+struct LidarIcp::Impl {
+  mrpt::slam::CICP icp;
+  std::unique_ptr<mrpt::maps::CSimplePointsMap> previous;
+};
+
+namespace {
+
+// Scan endpoints in the robot frame as an MRPT point map.
+std::unique_ptr<mrpt::maps::CSimplePointsMap> toPoints(const LaserScan& scan, const LidarIcpParams& p) {
+  auto map = std::make_unique<mrpt::maps::CSimplePointsMap>();
+  const double cs = std::cos(scan.sensor_pose.z()), ss = std::sin(scan.sensor_pose.z());
+  const auto step = static_cast<size_t>(std::max(1, p.decimation));
+  for (size_t i = 0; i < scan.ranges.size(); i += step) {
+    const double r = scan.ranges[i];
+    if (!scan.valid[i] || r < p.min_range || r > p.max_range) continue;
+    const double a = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
+    const double sx = r * std::cos(a), sy = r * std::sin(a);
+    map->insertPoint(static_cast<float>(scan.sensor_pose.x() + cs * sx - ss * sy),
+                     static_cast<float>(scan.sensor_pose.y() + ss * sx + cs * sy), 0.0f);
+  }
+  return map;
+}
+
+}  // namespace
+
+LidarIcp::LidarIcp(const LidarIcpParams& params, const EstimatorContext& context)
+    : params_(params),
+      pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())),
+      impl_(std::make_unique<Impl>()) {
+  auto& o = impl_->icp.options;
+  o.maxIterations = static_cast<unsigned>(params_.max_iterations);
+  o.thresholdDist = params_.threshold_dist;
+  o.thresholdAng = params_.threshold_ang_deg * M_PI / 180.0;
+  o.ALFA = params_.alfa;
+  o.smallestThresholdDist = params_.smallest_dist;
+}
+
+LidarIcp::~LidarIcp() = default;
+
+std::optional<PoseEstimate> LidarIcp::doProcess(const Event& event) {
+  if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
+    if (odo->delta.allFinite()) odometry_since_scan_ = composePose(odometry_since_scan_, odo->delta);
+    return std::nullopt;
+  }
+  const auto* scan = std::get_if<LaserScan>(&event);
+  if (!scan) return std::nullopt;
+  auto current = toPoints(*scan, params_);
+  if (current->size() < 10) {
+    countRejection("scan_too_few_points");
+    pose_ = composePose(pose_, odometry_since_scan_);
+  } else if (!impl_->previous) {
+    pose_ = composePose(pose_, odometry_since_scan_);
+  } else {
+    // The pose of the current scan in the previous scan's frame, seeded by the odometry.
+    const auto& g = odometry_since_scan_;
+    mrpt::slam::CICP::TReturnInfo info;
+    const auto pdf = impl_->icp.Align(impl_->previous.get(), current.get(),
+                                      mrpt::poses::CPose2D(g.x(), g.y(), g.z()), info);
+    const auto mean = pdf->getMeanVal();
+    Eigen::Vector3d rel(mean.x(), mean.y(), mean.phi());
+    if (info.goodness < params_.min_goodness || !rel.allFinite()) {
+      countRejection("icp_low_goodness");
+      rel = g;
+    }
+    pose_ = composePose(pose_, rel);
+  }
+  if (current->size() >= 10) impl_->previous = std::move(current);
+  odometry_since_scan_.setZero();
+  PoseEstimate est;
+  est.t = scan->t;
+  est.pose = pose_;
+  return est;
+}
+
+}  // namespace uwbloc::loc
