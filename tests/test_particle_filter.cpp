@@ -121,7 +121,7 @@ TEST(LikelihoodField, DistancesAndPeakAtTheTruePose) {
   field.setScan(map.castScan(truth, LidarParams::preset("sick_lms")));
   ASSERT_GT(field.rays(), 50u);
   const double at_truth = field.logLikelihood(truth.x(), truth.y(), truth.z());
-  for (const Eigen::Vector3d d :
+  for (const Eigen::Vector3d& d :
        {Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0, -0.2, 0), Eigen::Vector3d(0, 0, 0.1)})
     EXPECT_GT(at_truth,
               field.logLikelihood(truth.x() + d.x(), truth.y() + d.y(), truth.z() + d.z()));

@@ -213,9 +213,12 @@ void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
                        const std::vector<MethodSummary>& methods, const RunInfo& info) {
   data::ensureDirectory(out_dir);
   const fs::path dir(out_dir);
-  for (const auto& m : methods)
+  for (const auto& m : methods) {
     data::writeFileAtomic((dir / (fileLabel(m.spec) + ".tum")).string(),
                           formatTrajectoryTum(m.trajectory));
+    for (const auto& [suffix, contents] : m.artifacts)
+      data::writeFileAtomic((dir / (fileLabel(m.spec) + "_" + suffix)).string(), contents);
+  }
   data::writeFileAtomic((dir / "metrics.json").string(),
                         formatMetricsJson(dataset, methods, info.bounds));
   data::writeFileAtomic((dir / "metrics.csv").string(), formatMetricsCsv(dataset, methods));

@@ -74,6 +74,7 @@ RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint6
   keep(std::move(last));
   if (progress && Clock::now() - wall_start > std::chrono::seconds(2)) progress(1.0, spec);
   result.statistics = estimator->statistics();
+  result.artifacts = estimator->artifacts();
   result.processing_seconds = busy;
   return result;
 }
@@ -116,6 +117,7 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
       s.accepted_ranges = run.statistics.accepted_ranges;
       s.resets = run.statistics.resets;
       s.range_decisions = run.statistics.range_decisions;
+      s.artifacts = run.artifacts;
     }
   }
   const double n = repeat;

@@ -1,9 +1,10 @@
 #include "uwbloc/localization/methods/lidar_icp.hpp"
 
-#include <cmath>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/poses/CPosePDF.h>
 #include <mrpt/slam/CICP.h>
+
+#include <cmath>
 
 namespace uwbloc::loc {
 
@@ -15,7 +16,8 @@ struct LidarIcp::Impl {
 namespace {
 
 // Scan endpoints in the robot frame as an MRPT point map.
-std::unique_ptr<mrpt::maps::CSimplePointsMap> toPoints(const LaserScan& scan, const LidarIcpParams& p) {
+std::unique_ptr<mrpt::maps::CSimplePointsMap> toPoints(const LaserScan& scan,
+                                                       const LidarIcpParams& p) {
   auto map = std::make_unique<mrpt::maps::CSimplePointsMap>();
   const double cs = std::cos(scan.sensor_pose.z()), ss = std::sin(scan.sensor_pose.z());
   const auto step = static_cast<size_t>(std::max(1, p.decimation));
@@ -48,7 +50,8 @@ LidarIcp::~LidarIcp() = default;
 
 std::optional<PoseEstimate> LidarIcp::doProcess(const Event& event) {
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
-    if (odo->delta.allFinite()) odometry_since_scan_ = composePose(odometry_since_scan_, odo->delta);
+    if (odo->delta.allFinite())
+      odometry_since_scan_ = composePose(odometry_since_scan_, odo->delta);
     return std::nullopt;
   }
   const auto* scan = std::get_if<LaserScan>(&event);

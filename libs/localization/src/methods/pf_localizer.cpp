@@ -31,6 +31,11 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
 
 void PfLocalizer::reset() { initialise(); }
 
+std::vector<std::pair<std::string, std::string>> PfLocalizer::artifacts() const {
+  if (!params_.landmarks || landmark_map_.landmarks().empty()) return {};
+  return {{"landmarks.csv", landmark_map_.toCsv()}};
+}
+
 void PfLocalizer::initialise() {
   if (params_.init == "tracking") {
     pf_.initUniformBox(*context_.initial_pose,
@@ -110,7 +115,15 @@ std::optional<PoseEstimate> PfLocalizer::doProcess(const Event& event) {
     }
     const LikelihoodField& f = *field_;
     pf_.weight([&f](double x, double y, double th) { return f.logLikelihood(x, y, th); });
-    return output(scan->t);
+    auto est = output(scan->t);
+    if (params_.landmarks && est) {
+      // Corners seen from the current estimate grow the landmark map.
+      const Eigen::Matrix2d r =
+          Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
+      for (const auto& c : extractCorners(extractLines(*scan, extraction_), extraction_))
+        landmark_map_.integrate(est->pose, est->covariance, c, r);
+    }
+    return est;
   }
   if (!use_uwb_) return std::nullopt;
   const auto accepted = acceptRange(event);

@@ -23,7 +23,8 @@ struct RunResult {
   std::vector<loc::ParamInfo> parameters;     ///< effective parameters
   std::vector<loc::PoseEstimate> trajectory;  ///< one pose per timestamp (the latest wins)
   loc::EstimatorStatistics statistics;
-  double processing_seconds = 0.0;  ///< wall time inside the estimator
+  double processing_seconds = 0.0;                             ///< wall time inside the estimator
+  std::vector<std::pair<std::string, std::string>> artifacts;  ///< extra files of the method
   uint64_t seed = 0;
 };
 
@@ -53,6 +54,7 @@ struct MethodSummary {
   std::vector<loc::ParamInfo> parameters;
   std::vector<loc::PoseEstimate> trajectory;        ///< of the first run
   std::vector<loc::RangeDecision> range_decisions;  ///< of the first run (NLOS-judging methods)
+  std::vector<std::pair<std::string, std::string>> artifacts;  ///< of the first run
 };
 
 /// Runs `spec` `repeat` times with seeds seed, seed+1, ... and summarises.

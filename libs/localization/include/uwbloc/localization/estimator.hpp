@@ -64,6 +64,9 @@ class Estimator {
 
   const std::string& name() const { return name_; }
   const EstimatorStatistics& statistics() const { return stats_; }
+  /// Files a method produces besides its trajectory, as (file suffix, contents), e.g. a
+  /// landmark map ("landmarks.csv"); the run directory stores them as <method>_<suffix>.
+  virtual std::vector<std::pair<std::string, std::string>> artifacts() const { return {}; }
   /// Effective parameters (after defaults and overrides).
   const std::vector<ParamInfo>& parameters() const { return params_; }
   void setIdentity(std::string name, std::vector<ParamInfo> params) {

@@ -10,15 +10,15 @@
 namespace uwbloc::loc {
 
 struct LidarIcpParams {
-  int max_iterations = 40;      ///< ICP iterations per alignment
-  double threshold_dist = 0.75;  ///< initial correspondence distance [m]
+  int max_iterations = 40;          ///< ICP iterations per alignment
+  double threshold_dist = 0.75;     ///< initial correspondence distance [m]
   double threshold_ang_deg = 0.15;  ///< angular part of the correspondence threshold [deg]
-  double alfa = 0.5;            ///< threshold shrink factor per convergence
-  double smallest_dist = 0.05;  ///< final correspondence distance [m]
-  double min_range = 0.1;       ///< scan points closer than this are dropped [m]
-  double max_range = 30.0;      ///< scan points beyond this are dropped [m]
-  int decimation = 1;           ///< use every n-th ray
-  double min_goodness = 0.4;    ///< below this ICP is not trusted: odometry is used instead
+  double alfa = 0.5;                ///< threshold shrink factor per convergence
+  double smallest_dist = 0.05;      ///< final correspondence distance [m]
+  double min_range = 0.1;           ///< scan points closer than this are dropped [m]
+  double max_range = 30.0;          ///< scan points beyond this are dropped [m]
+  int decimation = 1;               ///< use every n-th ray
+  double min_goodness = 0.4;        ///< below this ICP is not trusted: odometry is used instead
 
   template <class V>
   void visit(V&& v) {

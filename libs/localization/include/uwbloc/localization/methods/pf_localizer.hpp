@@ -14,6 +14,7 @@
 #include <string>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
 #include "uwbloc/localization/pf/particle_filter.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
@@ -34,6 +35,8 @@ struct PfLocalizerParams {
   double nlos_k = 3.0;                 ///< gate width in standard deviations
   std::string nlos_action = "reject";  ///< reject or downweight
   double downweight = 5.0;             ///< sigma factor for down-weighted ranges
+  bool landmarks = true;               ///< build and save a corner-landmark map along the run
+  double landmark_sigma = 0.05;        ///< std of a corner observation [m]
 
   template <class V>
   void visit(V&& v) {
@@ -58,6 +61,8 @@ struct PfLocalizerParams {
     v("nlos_k", nlos_k, "NLOS gate width [std]");
     v("nlos_action", nlos_action, "reject or downweight flagged ranges");
     v("downweight", downweight, "sigma factor for down-weighted ranges");
+    v("landmarks", landmarks, "build a corner-landmark map (saved as <method>_landmarks.csv)");
+    v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
   }
 };
 
@@ -70,6 +75,10 @@ class PfLocalizer : public UwbEstimator {
   std::optional<PoseEstimate> doProcess(const Event& event) override;
   void reset() override;
 
+ public:
+  std::vector<std::pair<std::string, std::string>> artifacts() const override;
+  const LandmarkMap& landmarkMap() const { return landmark_map_; }
+
  private:
   void initialise();
   std::optional<PoseEstimate> output(double t);
@@ -80,6 +89,8 @@ class PfLocalizer : public UwbEstimator {
   bool use_lidar_, use_uwb_;
   ParticleFilter pf_;
   std::unique_ptr<LikelihoodField> field_;
+  LandmarkExtractionParams extraction_;
+  LandmarkMap landmark_map_;
 };
 
 }  // namespace uwbloc::loc
