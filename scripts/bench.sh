@@ -2,6 +2,7 @@
 # Builds and runs the benchmarks (per-step cost of every method on the MRPT demo).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
+UWBLOC_WITH_MRPT_APPS=1 bash scripts/install-deps.sh  # MRPT pf-localization, the peer
 bash scripts/build.sh -DBUILD_BENCHMARKS=ON
 ./build/bench/bench_methods "$@"
+./build/bench/bench_vs_mrpt 10 300

@@ -57,6 +57,7 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   Recording rec = readRawlog(ds.manifest.rawlog);
   ds.events = std::move(rec.events);
   ds.counts = rec.counts;
+  ds.step_times = rec.step_times;
   if (ds.events.empty()) throwInputError(ds.manifest.rawlog, 0, "rawlog holds no usable events");
 
   for (auto& e : ds.events) {
