@@ -12,6 +12,7 @@
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
 #include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/evaluation/optimizer_table.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -202,6 +203,28 @@ int main(int argc, char** argv) {
                    "no ranges where reference poses are further apart than this [s]")
       ->capture_default_str();
 
+  int opt_runs = 30;
+  optim::RunSettings opt_settings;
+  uint64_t opt_seed = 1;
+  std::string opt_list = "bas,pso,ga,ba,ibas,ibas-scaled";
+  std::string fn_list = "f1_sphere,f2_schwefel_2.22,f3_step,f4_rastrigin,f5_griewank";
+  auto* bench_opt = app.add_subcommand(
+      "bench-optimizers", "The PF-IBAS paper's Table 2: optimisers on benchmark functions");
+  bench_opt->add_option("--runs", opt_runs, "runs per cell")->capture_default_str();
+  bench_opt->add_option("--population", opt_settings.population, "population")
+      ->capture_default_str();
+  bench_opt->add_option("--iterations", opt_settings.iterations, "iterations")
+      ->capture_default_str();
+  bench_opt->add_option("--step", opt_settings.initial_step, "initial step (BAS, IBAS)")
+      ->capture_default_str();
+  bench_opt->add_option("--optimizers", opt_list, "comma-separated optimisers")
+      ->capture_default_str();
+  bench_opt
+      ->add_option("--functions", fn_list,
+                   "comma-separated functions (also michalewicz, goldstein_price)")
+      ->capture_default_str();
+  bench_opt->add_option("--seed", opt_seed, "seed of the first run")->capture_default_str();
+
   auto* list = app.add_subcommand("methods", "List the methods with their parameters and defaults");
 
   CLI11_PARSE(app, argc, argv);
@@ -231,6 +254,21 @@ int main(int argc, char** argv) {
       const auto manifest = data::writeSimulation(sc, sim_seed, sim_out);
       std::cout << "Simulated " << sc.name << " (" << sc.duration << " s, seed " << sim_seed
                 << ")\nManifest: " << manifest << "\n";
+      return 0;
+    }
+    if (*bench_opt) {
+      auto split = [](const std::string& text) {
+        std::vector<std::string> out;
+        std::istringstream in(text);
+        for (std::string item; std::getline(in, item, ',');)
+          if (!item.empty()) out.push_back(item);
+        return out;
+      };
+      const auto cells =
+          eval::optimizerTable(split(opt_list), split(fn_list), opt_runs, opt_settings, opt_seed);
+      std::printf("%d runs, population %d, %d iterations, initial step %g\n", opt_runs,
+                  opt_settings.population, opt_settings.iterations, opt_settings.initial_step);
+      std::cout << eval::formatOptimizerTable(cells);
       return 0;
     }
     if (*augment) {

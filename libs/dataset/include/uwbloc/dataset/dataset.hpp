@@ -21,7 +21,7 @@ struct Dataset {
   std::vector<TimedPose> ground_truth;           ///< may be empty
   std::shared_ptr<const loc::OccupancyMap> map;  ///< the manifest's map, when it names one
   std::map<std::string, long> counts;            ///< what the reader found
-  std::vector<double> step_times;  ///< time of each rawlog step (see rawlog.hpp)
+  std::vector<double> step_times;                ///< time of each rawlog step (see rawlog.hpp)
   double start_time = 0.0;
   double end_time = 0.0;
   double duration() const { return end_time - start_time; }

@@ -1,0 +1,110 @@
+// Swarm and evolutionary optimisers over a bounded box (all minimise; a maximisation problem
+// passes -f). BAS and the improved beetle swarm IBAS follow the PF-IBAS paper, eq. (8)-(25);
+// PSO, a real-coded GA and the bat algorithm are the paper's baselines with its settings.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace uwbloc::optim {
+
+using Rng = std::mt19937_64;
+using Objective = std::function<double(const Eigen::VectorXd&)>;
+
+struct Box {
+  Eigen::VectorXd lo, hi;
+  Eigen::VectorXd clamp(const Eigen::VectorXd& x) const { return x.cwiseMax(lo).cwiseMin(hi); }
+};
+
+struct Result {
+  Eigen::VectorXd best;
+  double value = 0.0;
+  long evaluations = 0;
+};
+
+struct RunSettings {
+  int iterations = 200;
+  int population = 30;
+  double initial_step = 5.0;  ///< BAS/IBAS initial step delta_0
+};
+
+class Optimizer {
+ public:
+  virtual ~Optimizer() = default;
+  virtual const char* name() const = 0;
+  virtual Result minimize(const Objective& f, const Box& box, const RunSettings& s, Rng& rng) = 0;
+};
+
+/// Eq. (18): omega_K = omega_max - (omega_max - omega_min) K / T_max.
+double inertiaWeight(int k, int t_max, double omega_max, double omega_min);
+
+/// Eq. (19), read literally as printed:
+///   delta_e(K) = (delta_e0 / delta_e1) ^ (1 / (1 + 5 K / T_max) - 1),
+/// which is 1 at K = 0 and falls to (delta_e0/delta_e1)^(-5/6) (0.435 for 0.95 / 0.35) at
+/// K = T_max: the step's decay factor per iteration. (The other common reading,
+/// delta_e1 (delta_e0/delta_e1)^(1/(1+5K/T)), runs from delta_e0 to about 0.41; both shrink the
+/// step faster as the search goes on. The paper's text claims the opposite.)
+double stepDecay(int k, int t_max, double delta_e0 = 0.95, double delta_e1 = 0.35);
+
+/// Eq. (25), the paper's Cauchy mutation: x_best (1 + 0.03 tan((0.35 u - 0.2) pi)), u ~ U(0,1).
+/// It scales with |x| and so suits functions centred on the origin, not positions in a frame.
+Eigen::VectorXd cauchyMutationPaper(const Eigen::VectorXd& best, double u);
+/// Frame-invariant form: x_best + 0.03 s tan((0.35 u - 0.2) pi), s the swarm's spread per axis.
+Eigen::VectorXd cauchyMutationScaled(const Eigen::VectorXd& best, const Eigen::VectorXd& spread,
+                                     double u);
+
+struct IbasParams {
+  double omega_max = 0.9, omega_min = 0.4;  ///< eq. (18)
+  double c1 = 1.5, c2 = 1.5;                ///< eq. (21) weights of personal and swarm best
+  double delta_e0 = 0.95, delta_e1 = 0.35;  ///< eq. (19)
+  double antenna = 2.0;                     ///< initial antenna length d [units of the box]
+  double antenna_decay = 0.95;              ///< eq. (13): d <- decay d + 0.01
+  bool frame_invariant_mutation = false;    ///< eq. (25) as printed, or scaled by the spread
+  double max_speed = 0.2;                   ///< velocity clamp, as a fraction of the box size
+  /// Step schedule: "paper" multiplies the step by eq. (19)'s factor every iteration (eq. 20),
+  /// which shrinks it by 1e-5 within 40 of 200 iterations and freezes the swarm; "geometric"
+  /// shrinks it evenly from the initial step to `final_step_ratio` of it over the run.
+  std::string schedule = "geometric";
+  double final_step_ratio = 1e-7;
+};
+
+/// The improved beetle swarm, usable on an external population (PF-IBAS moves particles with
+/// it): `positions` (n x k, one beetle per row) is moved in place to maximise `fitness`.
+class BeetleSwarm {
+ public:
+  explicit BeetleSwarm(IbasParams params = {}) : params_(params) {}
+  /// Runs `iterations` IBAS iterations; returns the best position found (its fitness in
+  /// `best_fitness`). Evaluations are counted in `evaluations`.
+  Eigen::VectorXd maximize(Eigen::MatrixXd& positions, const Objective& fitness, const Box& box,
+                           int iterations, double initial_step, Rng& rng, double* best_fitness,
+                           long* evaluations);
+  const IbasParams& params() const { return params_; }
+
+ private:
+  IbasParams params_;
+  Eigen::MatrixXd velocity_, personal_best_;
+  Eigen::VectorXd personal_value_;
+};
+
+/// "bas", "ibas" (geometric step schedule), "ibas-paper" (eq. 19-20 as printed),
+/// "ibas-scaled" (frame-invariant mutation), "pso", "ga", "ba".
+std::unique_ptr<Optimizer> makeOptimizer(const std::string& name);
+
+/// A benchmark function with its search box and known minimum.
+struct Benchmark {
+  std::string name;
+  Box box;
+  double minimum = 0.0;  ///< known minimum (Michalewicz: the BAS reference's value)
+  Objective f;
+};
+
+/// f1 sphere, f2 Schwefel 2.22, f3 step, f4 Rastrigin, f5 Griewank (30-D, the paper's Table 1
+/// ranges), michalewicz (2-D over [-6,-1]x[0,2], m = 10) and goldstein_price (2-D, [-2,2]^2).
+std::vector<Benchmark> benchmarks(int dim = 30);
+Benchmark benchmark(const std::string& name, int dim = 30);
+
+}  // namespace uwbloc::optim

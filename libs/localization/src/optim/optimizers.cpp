@@ -1,0 +1,438 @@
+#include "uwbloc/localization/optim/optimizers.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace uwbloc::optim {
+
+namespace {
+
+Eigen::VectorXd uniformIn(const Box& box, Rng& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Eigen::VectorXd x(box.lo.size());
+  for (Eigen::Index i = 0; i < x.size(); ++i) x(i) = box.lo(i) + u(rng) * (box.hi(i) - box.lo(i));
+  return x;
+}
+
+double sign(double v) { return (v > 0) - (v < 0); }
+
+// Unit vector towards `to`, or zero when `to` is (numerically) `from`: the guard for a beetle
+// that is its own personal or swarm best.
+Eigen::VectorXd towards(const Eigen::VectorXd& from, const Eigen::VectorXd& to) {
+  const Eigen::VectorXd d = to - from;
+  const double n = d.norm();
+  return n > 1e-300 ? Eigen::VectorXd(d / n) : Eigen::VectorXd::Zero(d.size());
+}
+
+// BAS, Jiang & Li 2017; eq. (8)-(14) for a single beetle.
+class Bas : public Optimizer {
+ public:
+  const char* name() const override { return "BAS"; }
+  Result minimize(const Objective& f, const Box& box, const RunSettings& s, Rng& rng) override {
+    std::normal_distribution<double> g(0.0, 1.0);
+    Result r;
+    Eigen::VectorXd x = uniformIn(box, rng);
+    r.best = x;
+    r.value = f(x);
+    double d = 2.0, delta = s.initial_step;
+    const auto k = x.size();
+    for (int it = 0; it < s.iterations; ++it) {
+      Eigen::VectorXd b(k);
+      for (Eigen::Index i = 0; i < k; ++i) b(i) = g(rng);
+      b /= std::max(b.norm(), 1e-300);                        // eq. (8)
+      const Eigen::VectorXd xr = box.clamp(x + d * b / 2.0);  // eq. (9)-(10)
+      const Eigen::VectorXd xl = box.clamp(x - d * b / 2.0);
+      const double fr = f(xr), fl = f(xl);
+      r.evaluations += 2;
+      x = box.clamp(x - delta * b * sign(fr - fl));  // eq. (12), minimising
+      const double fx = f(x);
+      ++r.evaluations;
+      if (fx < r.value) {
+        r.value = fx;
+        r.best = x;
+      }
+      d = 0.95 * d + 0.01;  // eq. (13)
+      delta *= 0.95;        // eq. (14)
+    }
+    return r;
+  }
+};
+
+class Ibas : public Optimizer {
+ public:
+  Ibas(IbasParams params, const char* name) : params_(std::move(params)), name_(name) {}
+  const char* name() const override { return name_; }
+  Result minimize(const Objective& f, const Box& box, const RunSettings& s, Rng& rng) override {
+    const IbasParams& p = params_;
+    BeetleSwarm swarm(p);
+    Eigen::MatrixXd pos(s.population, box.lo.size());
+    for (int i = 0; i < s.population; ++i) pos.row(i) = uniformIn(box, rng).transpose();
+    Result r;
+    double best = 0.0;
+    const Objective neg = [&f](const Eigen::VectorXd& x) { return -f(x); };
+    r.best =
+        swarm.maximize(pos, neg, box, s.iterations, s.initial_step, rng, &best, &r.evaluations);
+    r.value = -best;
+    return r;
+  }
+
+ private:
+  IbasParams params_;
+  const char* name_;
+};
+
+// PSO with the paper's settings (c1 = c2 = 2, omega = 1), velocities clamped to 20 % of the box.
+class Pso : public Optimizer {
+ public:
+  const char* name() const override { return "PSO"; }
+  Result minimize(const Objective& f, const Box& box, const RunSettings& s, Rng& rng) override {
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const int n = s.population;
+    const auto k = box.lo.size();
+    const Eigen::VectorXd vmax = 0.2 * (box.hi - box.lo);
+    std::vector<Eigen::VectorXd> x(n), v(n), pb(n);
+    std::vector<double> pv(n);
+    Result r;
+    r.value = 1e300;
+    for (int i = 0; i < n; ++i) {
+      x[i] = uniformIn(box, rng);
+      v[i] = Eigen::VectorXd::Zero(k);
+      pb[i] = x[i];
+      pv[i] = f(x[i]);
+      ++r.evaluations;
+      if (pv[i] < r.value) {
+        r.value = pv[i];
+        r.best = x[i];
+      }
+    }
+    for (int it = 0; it < s.iterations; ++it)
+      for (int i = 0; i < n; ++i) {
+        for (Eigen::Index j = 0; j < k; ++j)
+          v[i](j) = std::clamp(1.0 * v[i](j) + 2.0 * u(rng) * (pb[i](j) - x[i](j)) +
+                                   2.0 * u(rng) * (r.best(j) - x[i](j)),
+                               -vmax(j), vmax(j));
+        x[i] = box.clamp(x[i] + v[i]);
+        const double fx = f(x[i]);
+        ++r.evaluations;
+        if (fx < pv[i]) {
+          pv[i] = fx;
+          pb[i] = x[i];
+        }
+        if (fx < r.value) {
+          r.value = fx;
+          r.best = x[i];
+        }
+      }
+    return r;
+  }
+};
+
+// Real-coded GA: tournament selection, arithmetic crossover (0.8), uniform mutation per gene
+// (0.05), elitism of one.
+class Ga : public Optimizer {
+ public:
+  const char* name() const override { return "GA"; }
+  Result minimize(const Objective& f, const Box& box, const RunSettings& s, Rng& rng) override {
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const int n = s.population;
+    const auto k = box.lo.size();
+    std::vector<Eigen::VectorXd> pop(n), next(n);
+    std::vector<double> fit(n);
+    Result r;
+    r.value = 1e300;
+    for (int i = 0; i < n; ++i) {
+      pop[i] = uniformIn(box, rng);
+      fit[i] = f(pop[i]);
+      ++r.evaluations;
+    }
+    std::uniform_int_distribution<int> pick(0, n - 1);
+    auto tournament = [&] {
+      const int a = pick(rng), b = pick(rng);
+      return fit[a] < fit[b] ? a : b;
+    };
+    for (int it = 0; it < s.iterations; ++it) {
+      const int elite = static_cast<int>(std::min_element(fit.begin(), fit.end()) - fit.begin());
+      if (fit[elite] < r.value) {
+        r.value = fit[elite];
+        r.best = pop[elite];
+      }
+      next[0] = pop[elite];
+      for (int i = 1; i < n; ++i) {
+        Eigen::VectorXd child = pop[tournament()];
+        if (u(rng) < 0.8) {
+          const double a = u(rng);
+          child = a * child + (1 - a) * pop[tournament()];
+        }
+        for (Eigen::Index j = 0; j < k; ++j)
+          if (u(rng) < 0.05) child(j) = box.lo(j) + u(rng) * (box.hi(j) - box.lo(j));
+        next[i] = child;
+      }
+      std::swap(pop, next);
+      for (int i = 0; i < n; ++i) {
+        fit[i] = f(pop[i]);
+        ++r.evaluations;
+      }
+    }
+    const int elite = static_cast<int>(std::min_element(fit.begin(), fit.end()) - fit.begin());
+    if (fit[elite] < r.value) {
+      r.value = fit[elite];
+      r.best = pop[elite];
+    }
+    return r;
+  }
+};
+
+// Bat algorithm (Yang 2010): frequency in [0, 1], loudness A in [1, 2] decaying by alpha = 0.85,
+// pulse rate r rising with gamma = 0.9.
+class Bat : public Optimizer {
+ public:
+  const char* name() const override { return "BA"; }
+  Result minimize(const Objective& f, const Box& box, const RunSettings& s, Rng& rng) override {
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::normal_distribution<double> g(0.0, 1.0);
+    const int n = s.population;
+    const auto k = box.lo.size();
+    std::vector<Eigen::VectorXd> x(n), v(n);
+    std::vector<double> fx(n), loud(n), r0(n), rate(n);
+    Result r;
+    r.value = 1e300;
+    for (int i = 0; i < n; ++i) {
+      x[i] = uniformIn(box, rng);
+      v[i] = Eigen::VectorXd::Zero(k);
+      fx[i] = f(x[i]);
+      ++r.evaluations;
+      loud[i] = 1.0 + u(rng);
+      r0[i] = u(rng);
+      rate[i] = 0.0;
+      if (fx[i] < r.value) {
+        r.value = fx[i];
+        r.best = x[i];
+      }
+    }
+    for (int it = 1; it <= s.iterations; ++it) {
+      double mean_loud = 0.0;
+      for (double a : loud) mean_loud += a / n;
+      for (int i = 0; i < n; ++i) {
+        const double freq = u(rng);
+        v[i] += (x[i] - r.best) * freq;
+        Eigen::VectorXd cand = box.clamp(x[i] + v[i]);
+        if (u(rng) > rate[i]) {  // local walk around the best
+          Eigen::VectorXd step(k);
+          for (Eigen::Index j = 0; j < k; ++j) step(j) = g(rng) * 0.01 * (box.hi(j) - box.lo(j));
+          cand = box.clamp(r.best + step * mean_loud);
+        }
+        const double fc = f(cand);
+        ++r.evaluations;
+        if (fc <= fx[i] && u(rng) < loud[i]) {
+          x[i] = cand;
+          fx[i] = fc;
+          loud[i] *= 0.85;
+          rate[i] = r0[i] * (1.0 - std::exp(-0.9 * it));
+        }
+        if (fc < r.value) {
+          r.value = fc;
+          r.best = cand;
+        }
+      }
+    }
+    return r;
+  }
+};
+
+}  // namespace
+
+double inertiaWeight(int k, int t_max, double omega_max, double omega_min) {
+  return omega_max - (omega_max - omega_min) * static_cast<double>(k) / std::max(t_max, 1);
+}
+
+double stepDecay(int k, int t_max, double delta_e0, double delta_e1) {
+  const double exponent = 1.0 / (1.0 + 5.0 * k / std::max(t_max, 1)) - 1.0;
+  return std::pow(delta_e0 / delta_e1, exponent);
+}
+
+Eigen::VectorXd cauchyMutationPaper(const Eigen::VectorXd& best, double u) {
+  return best * (1.0 + 0.03 * std::tan((0.35 * u - 0.2) * M_PI));
+}
+
+Eigen::VectorXd cauchyMutationScaled(const Eigen::VectorXd& best, const Eigen::VectorXd& spread,
+                                     double u) {
+  return best + 0.03 * std::tan((0.35 * u - 0.2) * M_PI) * spread;
+}
+
+Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, const Box& box,
+                                      int iterations, double initial_step, Rng& rng,
+                                      double* best_fitness, long* evaluations) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto n = x.rows(), k = x.cols();
+  long evals = 0;
+  const Eigen::VectorXd vmax = params_.max_speed * (box.hi - box.lo);
+  velocity_.setZero(n, k);
+  personal_best_ = x;
+  personal_value_.resize(n);
+  Eigen::Index best_i = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    personal_value_(i) = f(x.row(i).transpose());
+    ++evals;
+    if (personal_value_(i) > personal_value_(best_i)) best_i = i;
+  }
+  Eigen::VectorXd swarm_best = personal_best_.row(best_i).transpose();
+  double swarm_value = personal_value_(best_i);
+  double step = initial_step, d = params_.antenna;
+  for (int it = 0; it < iterations; ++it) {
+    const double omega =
+        inertiaWeight(it, iterations, params_.omega_max, params_.omega_min);  // eq. (18)
+    Eigen::Index iter_best = 0;
+    double iter_value = -1e300;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::VectorXd xi = x.row(i).transpose();
+      // Eq. (21): inertia plus pulls towards the personal and the swarm best.
+      Eigen::VectorXd v = omega * velocity_.row(i).transpose() +
+                          params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
+                          params_.c2 * u(rng) * towards(xi, swarm_best);
+      v = v.cwiseMax(-vmax).cwiseMin(vmax);
+      // A beetle that is both its own and the swarm's best gets no pull, and its inertia dies
+      // away: it would stop searching. It then explores like a BAS beetle, along a random unit
+      // direction (eq. 8).
+      if (v.norm() < 1e-3) {
+        std::normal_distribution<double> g(0.0, 1.0);
+        for (Eigen::Index j = 0; j < k; ++j) v(j) = g(rng);
+        v /= std::max(v.norm(), 1e-300);
+      }
+      // Eq. (22)-(24): antennae along V, then a step along V towards the better antenna. The
+      // antenna length follows the step (BAS's eq. 11, delta = c d with c = 1) once the step
+      // has shrunk below the eq. (13) length, so that the two antennae sample at the scale
+      // the beetle moves at.
+      const double antenna = std::min(d, step);
+      const double fr = f(box.clamp(xi + v * antenna / 2.0));
+      const double fl = f(box.clamp(xi - v * antenna / 2.0));
+      const Eigen::VectorXd moved = box.clamp(xi + step * v * sign(fr - fl));
+      const double fm = f(moved);
+      evals += 3;
+      x.row(i) = moved.transpose();
+      velocity_.row(i) = v.transpose();
+      if (fm > personal_value_(i)) {
+        personal_value_(i) = fm;
+        personal_best_.row(i) = moved.transpose();
+      }
+      if (fm > iter_value) {
+        iter_value = fm;
+        iter_best = i;
+      }
+      if (fm > swarm_value) {
+        swarm_value = fm;
+        swarm_best = moved;
+      }
+    }
+    // Eq. (25): Cauchy mutation of this iteration's best beetle, kept only if it improves.
+    const Eigen::VectorXd xb = x.row(iter_best).transpose();
+    Eigen::VectorXd mutated;
+    if (params_.frame_invariant_mutation) {
+      const Eigen::VectorXd mean = x.colwise().mean().transpose();
+      const Eigen::VectorXd spread =
+          ((x.rowwise() - mean.transpose()).array().square().colwise().sum() /
+           std::max<double>(n - 1, 1))
+              .sqrt()
+              .transpose();
+      mutated = box.clamp(cauchyMutationScaled(xb, spread, u(rng)));
+    } else {
+      mutated = box.clamp(cauchyMutationPaper(xb, u(rng)));
+    }
+    const double fmu = f(mutated);
+    ++evals;
+    if (fmu > iter_value) {
+      x.row(iter_best) = mutated.transpose();
+      if (fmu > personal_value_(iter_best)) {
+        personal_value_(iter_best) = fmu;
+        personal_best_.row(iter_best) = mutated.transpose();
+      }
+      if (fmu > swarm_value) {
+        swarm_value = fmu;
+        swarm_best = mutated;
+      }
+    }
+    if (params_.schedule == "paper")
+      step *= stepDecay(it + 1, iterations, params_.delta_e0, params_.delta_e1);  // eq. (19)-(20)
+    else
+      step *= std::pow(params_.final_step_ratio, 1.0 / std::max(iterations, 1));
+    d = params_.antenna_decay * d + 0.01;  // eq. (13)
+  }
+  if (best_fitness) *best_fitness = swarm_value;
+  if (evaluations) *evaluations += evals;
+  return swarm_best;
+}
+
+std::unique_ptr<Optimizer> makeOptimizer(const std::string& name) {
+  if (name == "bas") return std::make_unique<Bas>();
+  IbasParams p;
+  if (name == "ibas") return std::make_unique<Ibas>(p, "IBAS");
+  if (name == "ibas-scaled") {
+    p.frame_invariant_mutation = true;
+    return std::make_unique<Ibas>(p, "IBAS-scaled");
+  }
+  if (name == "ibas-paper") {
+    p.schedule = "paper";
+    return std::make_unique<Ibas>(p, "IBAS-paper");
+  }
+  if (name == "pso") return std::make_unique<Pso>();
+  if (name == "ga") return std::make_unique<Ga>();
+  if (name == "ba") return std::make_unique<Bat>();
+  throw std::invalid_argument("unknown optimiser '" + name +
+                              "' (known: bas, ibas, ibas-paper, ibas-scaled, pso, ga, ba)");
+}
+
+std::vector<Benchmark> benchmarks(int dim) {
+  auto box = [dim](double lo, double hi) {
+    return Box{Eigen::VectorXd::Constant(dim, lo), Eigen::VectorXd::Constant(dim, hi)};
+  };
+  std::vector<Benchmark> out;
+  out.push_back(
+      {"f1_sphere", box(-100, 100), 0.0, [](const Eigen::VectorXd& x) { return x.squaredNorm(); }});
+  out.push_back({"f2_schwefel_2.22", box(-10, 10), 0.0, [](const Eigen::VectorXd& x) {
+                   return x.cwiseAbs().sum() + x.cwiseAbs().prod();
+                 }});
+  out.push_back({"f3_step", box(-100, 100), 0.0, [](const Eigen::VectorXd& x) {
+                   double s = 0;
+                   for (Eigen::Index i = 0; i < x.size(); ++i)
+                     s += std::pow(std::floor(x(i) + 0.5), 2);
+                   return s;
+                 }});
+  out.push_back({"f4_rastrigin", box(-5.12, 5.12), 0.0, [](const Eigen::VectorXd& x) {
+                   double s = 10.0 * x.size();
+                   for (Eigen::Index i = 0; i < x.size(); ++i)
+                     s += x(i) * x(i) - 10 * std::cos(2 * M_PI * x(i));
+                   return s;
+                 }});
+  out.push_back({"f5_griewank", box(-600, 600), 0.0, [](const Eigen::VectorXd& x) {
+                   double p = 1.0;
+                   for (Eigen::Index i = 0; i < x.size(); ++i)
+                     p *= std::cos(x(i) / std::sqrt(i + 1.0));
+                   return x.squaredNorm() / 4000.0 - p + 1.0;
+                 }});
+  Box mich{Eigen::Vector2d(-6, 0), Eigen::Vector2d(-1, 2)};
+  out.push_back({"michalewicz", mich, -1.9668, [](const Eigen::VectorXd& x) {
+                   double s = 0;
+                   for (Eigen::Index i = 0; i < x.size(); ++i)
+                     s -= std::sin(x(i)) * std::pow(std::sin((i + 1) * x(i) * x(i) / M_PI), 20);
+                   return s;
+                 }});
+  Box gp{Eigen::Vector2d(-2, -2), Eigen::Vector2d(2, 2)};
+  out.push_back({"goldstein_price", gp, 3.0, [](const Eigen::VectorXd& v) {
+                   const double x = v(0), y = v(1);
+                   const double a = 1 + std::pow(x + y + 1, 2) * (19 - 14 * x + 3 * x * x - 14 * y +
+                                                                  6 * x * y + 3 * y * y);
+                   const double b =
+                       30 + std::pow(2 * x - 3 * y, 2) *
+                                (18 - 32 * x + 12 * x * x + 48 * y - 36 * x * y + 27 * y * y);
+                   return a * b;
+                 }});
+  return out;
+}
+
+Benchmark benchmark(const std::string& name, int dim) {
+  for (auto& b : benchmarks(dim))
+    if (b.name == name) return b;
+  throw std::invalid_argument("unknown benchmark '" + name + "'");
+}
+
+}  // namespace uwbloc::optim
