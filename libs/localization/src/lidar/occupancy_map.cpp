@@ -167,9 +167,9 @@ LaserScan OccupancyMap::castScan(const Eigen::Vector3d& robot_pose,
   scan.sensor_height = lidar.sensor_height;
   scan.max_range = static_cast<float>(lidar.max_range);
   const size_t n = obs.getScanSize();
-  const double full = lidar.fov >= 2 * M_PI - 1e-9;
-  // A full circle must not repeat its first ray at the end.
-  scan.angle_increment = static_cast<float>(n > 1 ? lidar.fov / (full ? n : n - 1) : 0.0);
+  // MRPT spaces the rays by aperture / (N - 1) from -aperture/2 (so a full circle repeats its
+  // first direction in the last ray).
+  scan.angle_increment = static_cast<float>(n > 1 ? lidar.fov / static_cast<double>(n - 1) : 0.0);
   scan.angle_min = static_cast<float>(-lidar.fov / 2);
   scan.ranges.resize(n);
   scan.valid.resize(n);

@@ -22,6 +22,12 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   if (params_.nlos_action != "reject" && params_.nlos_action != "downweight")
     throw ParamError("parameter 'nlos_action' must be reject or downweight");
   if (params_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
+  if (params_.swarm != "none" && params_.swarm != "ibas")
+    throw ParamError("parameter 'swarm' must be none or ibas, got '" + params_.swarm + "'");
+  optim::IbasParams ibas;
+  ibas.frame_invariant_mutation = true;  // eq. (25) as printed scales with the map coordinates
+  ibas.antenna = params_.ibas_step;
+  swarm_ = optim::BeetleSwarm(ibas);
   if ((use_lidar_ || params_.init == "global" || params_.nlos == "raycast") && !context.map)
     throw ParamError("this method needs a map: give the manifest's [dataset] map");
   if (params_.init == "tracking" && !context.initial_pose)
@@ -32,8 +38,11 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
 void PfLocalizer::reset() { initialise(); }
 
 std::vector<std::pair<std::string, std::string>> PfLocalizer::artifacts() const {
-  if (!params_.landmarks || landmark_map_.landmarks().empty()) return {};
-  return {{"landmarks.csv", landmark_map_.toCsv()}};
+  std::vector<std::pair<std::string, std::string>> out;
+  if (params_.landmarks && !landmark_map_.landmarks().empty())
+    out.emplace_back("landmarks.csv", landmark_map_.toCsv());
+  if (!spread_log_.empty()) out.emplace_back("swarm_spread.csv", "t,spread_xy\n" + spread_log_);
+  return out;
 }
 
 void PfLocalizer::initialise() {
@@ -45,22 +54,20 @@ void PfLocalizer::initialise() {
   }
 }
 
-std::optional<PoseEstimate> PfLocalizer::output(double t) {
-  pf_.normalizeAndResample();
-  const ParticleEstimate e = pf_.estimate();
-  PoseEstimate est;
-  est.t = t;
-  est.pose = e.mean;
-  est.covariance = e.covariance;
-  return est;
+double PfLocalizer::epochLogLikelihood(double x, double y, double theta) const {
+  double l = 0.0;
+  if (epoch_has_scan_ && field_) l += field_->logLikelihood(x, y, theta);
+  const double inv2 = 1.0 / (2.0 * params_.front.sigma * params_.front.sigma);
+  for (const auto& r : used_ranges_) {
+    const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
+    l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs
+  }
+  return l;
 }
 
-void PfLocalizer::updateRange(const AcceptedRange& r) {
+void PfLocalizer::updateRange(const AcceptedRange& r, const ParticleEstimate& e) {
   const Eigen::Vector3d& tag = r.measurement.tag_on_robot;
   const double d = r.measurement.range;
-  // Predict the range from the current estimate (after motion and LiDAR).
-  pf_.normalizeAndResample();
-  const ParticleEstimate e = pf_.estimate();
   Eigen::RowVector3d j;
   const double d_hat = uwb::predictRange(e.mean, tag, r.anchor, &j);
   const double sigma = params_.front.sigma;
@@ -88,6 +95,7 @@ void PfLocalizer::updateRange(const AcceptedRange& r) {
   }
   dec.used = true;
   stats_.range_decisions.push_back(dec);
+  if (sig == sigma) used_ranges_.push_back(r);  // the swarm's fitness uses the clean ones
   const double inv2 = 1.0 / (2.0 * sig * sig);
   const Eigen::Vector3d anchor = r.anchor;
   pf_.weight([&](double x, double y, double th) {
@@ -96,40 +104,141 @@ void PfLocalizer::updateRange(const AcceptedRange& r) {
   });
 }
 
+void PfLocalizer::swarmMove() {
+  ParticleSet& ps = pf_.particles();
+  const auto n = static_cast<Eigen::Index>(ps.size());
+  const Eigen::Index k = params_.ibas_theta ? 3 : 2;
+  const ParticleEstimate e = pf_.estimate();
+  swarm_pos_.resize(n, k);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    swarm_pos_(i, 0) = ps.x[static_cast<size_t>(i)];
+    swarm_pos_(i, 1) = ps.y[static_cast<size_t>(i)];
+    // Headings unwrapped around the mean, so the search box does not straddle +-pi.
+    if (k == 3) swarm_pos_(i, 2) = e.mean.z() + wrapAngle(ps.theta[static_cast<size_t>(i)] - e.mean.z());
+  }
+  // Search box: the cloud's extent, at least 0.3 m (0.2 rad) around the mean.
+  optim::Box box{Eigen::VectorXd(k), Eigen::VectorXd(k)};
+  for (Eigen::Index c = 0; c < k; ++c) {
+    const double half = std::max(3.0 * std::sqrt(std::max(e.covariance(c, c), 0.0)), c == 2 ? 0.2 : 0.3);
+    box.lo(c) = (c == 2 ? e.mean.z() : e.mean(c)) - half;
+    box.hi(c) = (c == 2 ? e.mean.z() : e.mean(c)) + half;
+    box.lo(c) = std::min(box.lo(c), swarm_pos_.col(c).minCoeff());
+    box.hi(c) = std::max(box.hi(c), swarm_pos_.col(c).maxCoeff());
+  }
+  // Heading of beetle i when the swarm moves x, y only: found through its row.
+  const optim::Objective fitness = [&](const Eigen::VectorXd& q) {
+    return epochLogLikelihood(q(0), q(1), k == 3 ? q(2) : e.mean.z());
+  };
+  long evals = 0;
+  double best = 0.0;
+  swarm_.maximize(swarm_pos_, fitness, box, params_.ibas_iterations, params_.ibas_step, pf_.rng(), &best, &evals);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto u = static_cast<size_t>(i);
+    ps.x[u] = swarm_pos_(i, 0);
+    ps.y[u] = swarm_pos_(i, 1);
+    if (k == 3) ps.theta[u] = wrapAngle(swarm_pos_(i, 2));
+  }
+  // Diversity: a collapsed swarm would freeze the estimate.
+  double mx = 0, my = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    mx += ps.x[static_cast<size_t>(i)] / n;
+    my += ps.y[static_cast<size_t>(i)] / n;
+  }
+  double var = 0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    var += (std::pow(ps.x[static_cast<size_t>(i)] - mx, 2) + std::pow(ps.y[static_cast<size_t>(i)] - my, 2)) / n;
+  const double spread = std::sqrt(var);
+  char row[64];
+  std::snprintf(row, sizeof row, "%.6f,%.5f\n", epoch_t_, spread);
+  spread_log_ += row;
+  if (spread < params_.min_spread) {
+    std::normal_distribution<double> g(0.0, params_.min_spread);
+    for (size_t i = 0; i < ps.size(); ++i) {
+      ps.x[i] += g(pf_.rng());
+      ps.y[i] += g(pf_.rng());
+    }
+    countRejection("swarm_diversity_injection");
+  }
+  // Eq. (28): the weights are the fitness at the moved positions, normalised.
+  for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
+  pf_.normalize();
+}
+
+std::optional<PoseEstimate> PfLocalizer::finishEpoch() {
+  epoch_open_ = false;
+  used_ranges_.clear();
+  if (epoch_has_scan_) {
+    if (field_->rays() == 0) {
+      countRejection("scan_without_returns");
+    } else {
+      const LikelihoodField& f = *field_;
+      pf_.weight([&f](double x, double y, double th) { return f.logLikelihood(x, y, th); });
+    }
+  }
+  if (!epoch_ranges_.empty()) {
+    // The NLOS test uses the estimate after the motion and the LiDAR update.
+    pf_.normalize();
+    const ParticleEstimate e = pf_.estimate();
+    for (const auto& r : epoch_ranges_) updateRange(r, e);
+  }
+  if (params_.swarm == "ibas") {
+    pf_.normalize();
+    swarmMove();
+  } else {
+    pf_.normalizeAndResample();
+  }
+  const ParticleEstimate e = pf_.estimate();
+  PoseEstimate est;
+  est.t = epoch_t_;
+  est.pose = e.mean;
+  est.covariance = e.covariance;
+  if (params_.landmarks && epoch_has_scan_) {
+    // Corners seen from the current estimate grow the landmark map.
+    const Eigen::Matrix2d r = Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
+    for (const auto& c : extractCorners(extractLines(epoch_scan_, extraction_), extraction_))
+      landmark_map_.integrate(est.pose, est.covariance, c, r);
+  }
+  epoch_has_scan_ = false;
+  epoch_ranges_.clear();
+  return est;
+}
+
+std::optional<PoseEstimate> PfLocalizer::doFinish() {
+  if (epoch_open_) return finishEpoch();
+  return std::nullopt;
+}
+
 std::optional<PoseEstimate> PfLocalizer::doProcess(const Event& event) {
   if (!pf_.initialised()) initialise();
+  const double t = eventTime(event);
+  std::optional<PoseEstimate> out;
+  // Any later event closes the open epoch.
+  if (epoch_open_ && t > epoch_t_) out = finishEpoch();
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
     if (!odo->delta.allFinite()) {
       countRejection("non_finite_odometry");
-      return std::nullopt;
+      return out;
     }
+    if (epoch_open_) out = finishEpoch();  // motion at the epoch's own time: close it first
     pf_.predict(odo->delta);
-    return std::nullopt;
+    return out;
   }
   if (const auto* scan = std::get_if<LaserScan>(&event)) {
-    if (!use_lidar_) return std::nullopt;
+    if (!use_lidar_) return out;
     field_->setScan(*scan);
-    if (field_->rays() == 0) {
-      countRejection("scan_without_returns");
-      return output(scan->t);
-    }
-    const LikelihoodField& f = *field_;
-    pf_.weight([&f](double x, double y, double th) { return f.logLikelihood(x, y, th); });
-    auto est = output(scan->t);
-    if (params_.landmarks && est) {
-      // Corners seen from the current estimate grow the landmark map.
-      const Eigen::Matrix2d r =
-          Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
-      for (const auto& c : extractCorners(extractLines(*scan, extraction_), extraction_))
-        landmark_map_.integrate(est->pose, est->covariance, c, r);
-    }
-    return est;
+    epoch_scan_ = *scan;
+    epoch_has_scan_ = true;
+  } else {
+    if (!use_uwb_) return out;
+    const auto accepted = acceptRange(event);
+    if (!accepted) return out;
+    epoch_ranges_.push_back(*accepted);
   }
-  if (!use_uwb_) return std::nullopt;
-  const auto accepted = acceptRange(event);
-  if (!accepted) return std::nullopt;
-  updateRange(*accepted);
-  return output(accepted->measurement.t);
+  if (!epoch_open_) {
+    epoch_open_ = true;
+    epoch_t_ = t;
+  }
+  return out;
 }
 
 }  // namespace uwbloc::loc

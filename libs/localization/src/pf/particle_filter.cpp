@@ -188,7 +188,7 @@ void ParticleFilter::weight(const LogLikelihood& log_likelihood) {
   }
 }
 
-bool ParticleFilter::normalizeAndResample() {
+double ParticleFilter::normalize() {
   const size_t n = set_.size();
   // Normalise in log space: w_i = exp(l_i - max) / sum.
   const double max_l = *std::max_element(set_.log_w.begin(), set_.log_w.end());
@@ -206,6 +206,12 @@ bool ParticleFilter::normalizeAndResample() {
   for (double w : w_) sq += w * w;
   last_ess_ = 1.0 / sq;
   for (size_t i = 0; i < n; ++i) set_.log_w[i] = std::log(std::max(w_[i], 1e-300));
+  return last_ess_;
+}
+
+bool ParticleFilter::normalizeAndResample() {
+  const size_t n = set_.size();
+  normalize();
   if (last_ess_ >= params_.ess_threshold * static_cast<double>(n)) return false;
   if (!resampler_->selectIndices(w_, indices_, rng_)) return true;
   for (size_t i = 0; i < n; ++i) {

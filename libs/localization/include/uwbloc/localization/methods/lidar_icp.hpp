@@ -1,6 +1,8 @@
-// lidar-icp: LiDAR odometry by scan-to-scan ICP (MRPT's CICP), each alignment seeded with the
-// odometry accumulated since the previous scan. It accumulates error like any odometry: this is
-// the PF-IBAS paper's LiDAR-only baseline.
+// lidar-icp: LiDAR odometry by ICP (MRPT's CICP) of each scan against the last keyframe scan,
+// seeded with the odometry accumulated since that keyframe. A new keyframe starts when the robot
+// has moved `kf_dist` or turned `kf_angle` from the last one: aligning every scan to its
+// predecessor would add each alignment's small error (a few mrad) at the scan rate. It still
+// accumulates error like any odometry: this is the PF-IBAS paper's LiDAR-only baseline.
 #pragma once
 
 #include <memory>
@@ -19,6 +21,8 @@ struct LidarIcpParams {
   double max_range = 30.0;          ///< scan points beyond this are dropped [m]
   int decimation = 1;               ///< use every n-th ray
   double min_goodness = 0.4;        ///< below this ICP is not trusted: odometry is used instead
+  double kf_dist = 0.5;         ///< new keyframe after this translation [m]
+  double kf_angle_deg = 15.0;   ///< new keyframe after this rotation [deg]
 
   template <class V>
   void visit(V&& v) {
@@ -31,6 +35,8 @@ struct LidarIcpParams {
     v("max_range", max_range, "drop farther points [m]");
     v("decimation", decimation, "use every n-th ray");
     v("min_goodness", min_goodness, "fall back to odometry below this ICP goodness");
+    v("kf_dist", kf_dist, "new keyframe after this translation [m] (0: every scan)");
+    v("kf_angle", kf_angle_deg, "new keyframe after this rotation [deg]");
   }
 };
 
@@ -46,7 +52,8 @@ class LidarIcp : public Estimator {
   struct Impl;
   LidarIcpParams params_;
   Eigen::Vector3d pose_;
-  Eigen::Vector3d odometry_since_scan_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d keyframe_pose_;
+  Eigen::Vector3d odometry_since_keyframe_ = Eigen::Vector3d::Zero();
   std::unique_ptr<Impl> impl_;
 };
 

@@ -8,6 +8,14 @@
 // down-weighted (sigma multiplied). The geometric test (ray-cast of the tag-anchor segment on
 // the grid from p̂) is evaluated alongside and can be chosen instead; both decisions are
 // recorded for every range so the two detectors can be scored on the same data.
+//
+// Measurements are processed per epoch (everything with one timestamp: a scan and its ranges):
+// weight by the scan, test and weight the ranges, then either resample (SIR) or, with
+// swarm = ibas, move the particles with the improved beetle swarm (PF-IBAS, the paper's
+// §2.1.3): the fitness is the epoch's log-likelihood (eq. 26 over the NLOS-cleaned ranges, plus
+// the LiDAR field), no particle is discarded, and the weights are the fitness at the moved
+// positions, normalised (eq. 28). When the swarm's spread collapses below `min_spread`, jitter
+// of that size is injected so that the estimate cannot freeze.
 #pragma once
 
 #include <memory>
@@ -16,6 +24,7 @@
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
+#include "uwbloc/localization/optim/optimizers.hpp"
 #include "uwbloc/localization/pf/particle_filter.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
 
@@ -35,6 +44,11 @@ struct PfLocalizerParams {
   double nlos_k = 3.0;                 ///< gate width in standard deviations
   std::string nlos_action = "reject";  ///< reject or downweight
   double downweight = 5.0;             ///< sigma factor for down-weighted ranges
+  std::string swarm = "none";        ///< none (resampling) or ibas (PF-IBAS)
+  int ibas_iterations = 5;           ///< IBAS iterations per epoch
+  double ibas_step = 0.05;           ///< IBAS initial step [m, rad]
+  bool ibas_theta = true;            ///< IBAS moves the heading too (else x, y only)
+  double min_spread = 0.02;          ///< inject diversity below this swarm spread [m]
   bool landmarks = true;               ///< build and save a corner-landmark map along the run
   double landmark_sigma = 0.05;        ///< std of a corner observation [m]
 
@@ -61,6 +75,11 @@ struct PfLocalizerParams {
     v("nlos_k", nlos_k, "NLOS gate width [std]");
     v("nlos_action", nlos_action, "reject or downweight flagged ranges");
     v("downweight", downweight, "sigma factor for down-weighted ranges");
+    v("swarm", swarm, "none (resampling) or ibas (PF-IBAS: the swarm moves the particles)");
+    v("ibas_iters", ibas_iterations, "IBAS iterations per epoch");
+    v("ibas_step", ibas_step, "IBAS initial step [m, rad]");
+    v("ibas_theta", ibas_theta, "IBAS moves the heading too");
+    v("min_spread", min_spread, "inject diversity when the swarm spread falls below [m]");
     v("landmarks", landmarks, "build a corner-landmark map (saved as <method>_landmarks.csv)");
     v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
   }
@@ -73,6 +92,7 @@ class PfLocalizer : public UwbEstimator {
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
+  std::optional<PoseEstimate> doFinish() override;
   void reset() override;
 
  public:
@@ -81,8 +101,11 @@ class PfLocalizer : public UwbEstimator {
 
  private:
   void initialise();
-  std::optional<PoseEstimate> output(double t);
-  void updateRange(const AcceptedRange& r);
+  std::optional<PoseEstimate> finishEpoch();
+  /// The NLOS test of one range against the current estimate; weights the particles when used.
+  void updateRange(const AcceptedRange& r, const ParticleEstimate& e);
+  double epochLogLikelihood(double x, double y, double theta) const;
+  void swarmMove();
 
   PfLocalizerParams params_;
   EstimatorContext context_;
@@ -91,6 +114,15 @@ class PfLocalizer : public UwbEstimator {
   std::unique_ptr<LikelihoodField> field_;
   LandmarkExtractionParams extraction_;
   LandmarkMap landmark_map_;
+  // The open epoch.
+  double epoch_t_ = 0.0;
+  bool epoch_open_ = false, epoch_has_scan_ = false;
+  LaserScan epoch_scan_;
+  std::vector<AcceptedRange> epoch_ranges_, used_ranges_;
+  // PF-IBAS state, kept to avoid allocating per epoch.
+  optim::BeetleSwarm swarm_;
+  Eigen::MatrixXd swarm_pos_;
+  std::string spread_log_;  ///< "t,spread_xy" rows (PF-IBAS)
 };
 
 }  // namespace uwbloc::loc

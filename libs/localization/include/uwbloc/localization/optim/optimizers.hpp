@@ -69,7 +69,7 @@ struct IbasParams {
   /// which shrinks it by 1e-5 within 40 of 200 iterations and freezes the swarm; "geometric"
   /// shrinks it evenly from the initial step to `final_step_ratio` of it over the run.
   std::string schedule = "geometric";
-  double final_step_ratio = 1e-7;
+  double final_step_ratio = 1e-3;
 };
 
 /// The improved beetle swarm, usable on an external population (PF-IBAS moves particles with

@@ -86,6 +86,8 @@ class ParticleFilter {
   void predict(const Eigen::Vector3d& delta);
   /// Adds the measurement's log-likelihood to every particle's log-weight.
   void weight(const LogLikelihood& log_likelihood);
+  /// Normalises the weights (no resampling); returns the effective sample size.
+  double normalize();
   /// Normalises the weights; resamples when ESS / N < threshold. Returns true if it resampled.
   bool normalizeAndResample();
   /// Weighted mean (angle on the circle) and covariance.
