@@ -1,9 +1,9 @@
 // Registration of the LiDAR-based methods.
+#include <map>
+
 #include "uwbloc/localization/methods/lidar_icp.hpp"
 #include "uwbloc/localization/methods/pf_localizer.hpp"
 #include "uwbloc/localization/registry.hpp"
-
-#include <map>
 
 namespace uwbloc::loc {
 
@@ -50,9 +50,14 @@ void addLidarMethods(Registry& r) {
                  "The core method: LiDAR + UWB, NLOS rejection, particles moved by the improved "
                  "beetle swarm instead of resampled (n=40)",
                  fused, true, true,
-                 {{"nlos", "lidar"}, {"n", "40"}, {"swarm", "ibas"}, {"ibas_iters", "1"},
-                  {"ibas_step", "0.1"}, {"ibas_theta", "0"}}));
-  r.add(pfMethod("uwb-pf", "UWB + odometry particle filter (the UWB single-sensor particle baseline), "
+                 {{"nlos", "lidar"},
+                  {"n", "40"},
+                  {"swarm", "ibas"},
+                  {"ibas_iters", "1"},
+                  {"ibas_step", "0.1"},
+                  {"ibas_theta", "0"}}));
+  r.add(pfMethod("uwb-pf",
+                 "UWB + odometry particle filter (the UWB single-sensor particle baseline), "
                  "NLOS test against the odometry-predicted pose",
                  {"odometry", "ranges"}, false, true, {{"nlos", "lidar"}, {"init", "tracking"}}));
 }

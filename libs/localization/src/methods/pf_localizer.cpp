@@ -114,12 +114,14 @@ void PfLocalizer::swarmMove() {
     swarm_pos_(i, 0) = ps.x[static_cast<size_t>(i)];
     swarm_pos_(i, 1) = ps.y[static_cast<size_t>(i)];
     // Headings unwrapped around the mean, so the search box does not straddle +-pi.
-    if (k == 3) swarm_pos_(i, 2) = e.mean.z() + wrapAngle(ps.theta[static_cast<size_t>(i)] - e.mean.z());
+    if (k == 3)
+      swarm_pos_(i, 2) = e.mean.z() + wrapAngle(ps.theta[static_cast<size_t>(i)] - e.mean.z());
   }
   // Search box: the cloud's extent, at least 0.3 m (0.2 rad) around the mean.
   optim::Box box{Eigen::VectorXd(k), Eigen::VectorXd(k)};
   for (Eigen::Index c = 0; c < k; ++c) {
-    const double half = std::max(3.0 * std::sqrt(std::max(e.covariance(c, c), 0.0)), c == 2 ? 0.2 : 0.3);
+    const double half =
+        std::max(3.0 * std::sqrt(std::max(e.covariance(c, c), 0.0)), c == 2 ? 0.2 : 0.3);
     box.lo(c) = (c == 2 ? e.mean.z() : e.mean(c)) - half;
     box.hi(c) = (c == 2 ? e.mean.z() : e.mean(c)) + half;
     box.lo(c) = std::min(box.lo(c), swarm_pos_.col(c).minCoeff());
@@ -131,7 +133,8 @@ void PfLocalizer::swarmMove() {
   };
   long evals = 0;
   double best = 0.0;
-  swarm_.maximize(swarm_pos_, fitness, box, params_.ibas_iterations, params_.ibas_step, pf_.rng(), &best, &evals);
+  swarm_.maximize(swarm_pos_, fitness, box, params_.ibas_iterations, params_.ibas_step, pf_.rng(),
+                  &best, &evals);
   for (Eigen::Index i = 0; i < n; ++i) {
     const auto u = static_cast<size_t>(i);
     ps.x[u] = swarm_pos_(i, 0);
@@ -146,7 +149,9 @@ void PfLocalizer::swarmMove() {
   }
   double var = 0;
   for (Eigen::Index i = 0; i < n; ++i)
-    var += (std::pow(ps.x[static_cast<size_t>(i)] - mx, 2) + std::pow(ps.y[static_cast<size_t>(i)] - my, 2)) / n;
+    var += (std::pow(ps.x[static_cast<size_t>(i)] - mx, 2) +
+            std::pow(ps.y[static_cast<size_t>(i)] - my, 2)) /
+           n;
   const double spread = std::sqrt(var);
   char row[64];
   std::snprintf(row, sizeof row, "%.6f,%.5f\n", epoch_t_, spread);
@@ -160,7 +165,8 @@ void PfLocalizer::swarmMove() {
     countRejection("swarm_diversity_injection");
   }
   // Eq. (28): the weights are the fitness at the moved positions, normalised.
-  for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
+  for (size_t i = 0; i < ps.size(); ++i)
+    ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
   pf_.normalize();
 }
 
@@ -194,7 +200,8 @@ std::optional<PoseEstimate> PfLocalizer::finishEpoch() {
   est.covariance = e.covariance;
   if (params_.landmarks && epoch_has_scan_) {
     // Corners seen from the current estimate grow the landmark map.
-    const Eigen::Matrix2d r = Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
+    const Eigen::Matrix2d r =
+        Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
     for (const auto& c : extractCorners(extractLines(epoch_scan_, extraction_), extraction_))
       landmark_map_.integrate(est.pose, est.covariance, c, r);
   }

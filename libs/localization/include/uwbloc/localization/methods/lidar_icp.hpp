@@ -21,8 +21,8 @@ struct LidarIcpParams {
   double max_range = 30.0;          ///< scan points beyond this are dropped [m]
   int decimation = 1;               ///< use every n-th ray
   double min_goodness = 0.4;        ///< below this ICP is not trusted: odometry is used instead
-  double kf_dist = 0.5;         ///< new keyframe after this translation [m]
-  double kf_angle_deg = 15.0;   ///< new keyframe after this rotation [deg]
+  double kf_dist = 0.5;             ///< new keyframe after this translation [m]
+  double kf_angle_deg = 15.0;       ///< new keyframe after this rotation [deg]
 
   template <class V>
   void visit(V&& v) {

@@ -44,11 +44,11 @@ struct PfLocalizerParams {
   double nlos_k = 3.0;                 ///< gate width in standard deviations
   std::string nlos_action = "reject";  ///< reject or downweight
   double downweight = 5.0;             ///< sigma factor for down-weighted ranges
-  std::string swarm = "none";        ///< none (resampling) or ibas (PF-IBAS)
-  int ibas_iterations = 5;           ///< IBAS iterations per epoch
-  double ibas_step = 0.05;           ///< IBAS initial step [m, rad]
-  bool ibas_theta = true;            ///< IBAS moves the heading too (else x, y only)
-  double min_spread = 0.02;          ///< inject diversity below this swarm spread [m]
+  std::string swarm = "none";          ///< none (resampling) or ibas (PF-IBAS)
+  int ibas_iterations = 5;             ///< IBAS iterations per epoch
+  double ibas_step = 0.05;             ///< IBAS initial step [m, rad]
+  bool ibas_theta = true;              ///< IBAS moves the heading too (else x, y only)
+  double min_spread = 0.02;            ///< inject diversity below this swarm spread [m]
   bool landmarks = true;               ///< build and save a corner-landmark map along the run
   double landmark_sigma = 0.05;        ///< std of a corner observation [m]
 
@@ -98,6 +98,7 @@ class PfLocalizer : public UwbEstimator {
  public:
   std::vector<std::pair<std::string, std::string>> artifacts() const override;
   const LandmarkMap& landmarkMap() const { return landmark_map_; }
+  const ParticleFilter& filter() const { return pf_; }
 
  private:
   void initialise();
