@@ -270,9 +270,11 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
   velocity_.setZero(n, k);
   personal_best_ = x;
   personal_value_.resize(n);
+  current_value_.resize(n);
   Eigen::Index best_i = 0;
   for (Eigen::Index i = 0; i < n; ++i) {
     personal_value_(i) = f(x.row(i).transpose());
+    current_value_(i) = personal_value_(i);
     ++evals;
     if (personal_value_(i) > personal_value_(best_i)) best_i = i;
   }
@@ -307,10 +309,15 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
       const double fr = f(box.clamp(xi + v * antenna / 2.0));
       const double fl = f(box.clamp(xi - v * antenna / 2.0));
       const Eigen::VectorXd moved = box.clamp(xi + step * v * sign(fr - fl));
-      const double fm = f(moved);
+      double fm = f(moved);
       evals += 3;
-      x.row(i) = moved.transpose();
       velocity_.row(i) = v.transpose();
+      if (params_.greedy && fm < current_value_(i)) {
+        fm = current_value_(i);  // stay
+      } else {
+        x.row(i) = moved.transpose();
+        current_value_(i) = fm;
+      }
       if (fm > personal_value_(i)) {
         personal_value_(i) = fm;
         personal_best_.row(i) = moved.transpose();
@@ -342,6 +349,7 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
     ++evals;
     if (fmu > iter_value) {
       x.row(iter_best) = mutated.transpose();
+      current_value_(iter_best) = fmu;
       if (fmu > personal_value_(iter_best)) {
         personal_value_(iter_best) = fmu;
         personal_best_.row(iter_best) = mutated.transpose();

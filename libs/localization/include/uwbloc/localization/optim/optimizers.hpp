@@ -69,6 +69,8 @@ struct IbasParams {
   /// which shrinks it by 1e-5 within 40 of 200 iterations and freezes the swarm; "geometric"
   /// shrinks it evenly from the initial step to `final_step_ratio` of it over the run.
   std::string schedule = "geometric";
+  /// A beetle keeps its place when its eq. (24) step would make it worse.
+  bool greedy = true;
   double final_step_ratio = 1e-3;
 };
 
@@ -87,7 +89,7 @@ class BeetleSwarm {
  private:
   IbasParams params_;
   Eigen::MatrixXd velocity_, personal_best_;
-  Eigen::VectorXd personal_value_;
+  Eigen::VectorXd personal_value_, current_value_;
 };
 
 /// "bas", "ibas" (geometric step schedule), "ibas-paper" (eq. 19-20 as printed),
