@@ -41,11 +41,11 @@ void addLidarMethods(Registry& r) {
                  {"scans", "odometry", "map"}, true, false, {{"nlos", "none"}}));
   r.add(pfMethod("fused-naive",
                  "LiDAR + UWB particle filter, likelihoods multiplied, no NLOS rejection", fused,
-                 true, true, {{"nlos", "none"}}));
+                 true, true, {{"nlos", "none"}, {"landmarks", "0"}}));
   r.add(pfMethod("fused-pf", "LiDAR + UWB particle filter with NLOS rejection from the LiDAR pose",
-                 fused, true, true, {{"nlos", "lidar"}}));
+                 fused, true, true, {{"nlos", "lidar"}, {"landmarks", "0"}}));
   r.add(pfMethod("pf-sir", "PF-IBAS's baseline: fused-pf with n=200 and standard resampling", fused,
-                 true, true, {{"nlos", "lidar"}, {"n", "200"}}));
+                 true, true, {{"nlos", "lidar"}, {"n", "200"}, {"landmarks", "0"}}));
   r.add(pfMethod("pf-ibas",
                  "The core method: LiDAR + UWB, NLOS rejection, particles moved by the improved "
                  "beetle swarm instead of resampled (n=40)",
@@ -59,7 +59,7 @@ void addLidarMethods(Registry& r) {
   r.add(pfMethod("uwb-pf",
                  "UWB + odometry particle filter (the UWB single-sensor particle baseline), "
                  "NLOS test against the odometry-predicted pose",
-                 {"odometry", "ranges"}, false, true, {{"nlos", "lidar"}, {"init", "tracking"}}));
+                 {"odometry", "ranges"}, false, true, {{"nlos", "lidar"}, {"landmarks", "0"}}));
 }
 
 }  // namespace uwbloc::loc
