@@ -49,15 +49,16 @@ TEST(Ibas, NoNanWhenEveryBeetleIsTheBest) {
   double best = 0;
   long evals = 0;
   const Eigen::VectorXd b = swarm.maximize(
-      pos, [](const Eigen::VectorXd& x) { return -x.squaredNorm(); }, box, 50, 0.5, rng, &best,
-      &evals);
+      pos, [](const Eigen::Ref<const Eigen::VectorXd>& x) { return -x.squaredNorm(); }, box, 50,
+      0.5, rng, &best, &evals);
   EXPECT_TRUE(b.allFinite());
   EXPECT_TRUE(pos.allFinite());
   EXPECT_TRUE(std::isfinite(best));
   EXPECT_GT(best, -0.75);  // it improved on the start (-0.75)
   // A flat fitness (every antenna equal) must not produce NaN either.
   swarm.maximize(
-      pos, [](const Eigen::VectorXd&) { return 1.0; }, box, 20, 0.5, rng, &best, &evals);
+      pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box, 20, 0.5, rng, &best,
+      &evals);
   EXPECT_TRUE(pos.allFinite());
 }
 

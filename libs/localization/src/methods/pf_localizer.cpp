@@ -128,7 +128,7 @@ void PfLocalizer::swarmMove() {
     box.hi(c) = std::max(box.hi(c), swarm_pos_.col(c).maxCoeff());
   }
   // Heading of beetle i when the swarm moves x, y only: found through its row.
-  const optim::Objective fitness = [&](const Eigen::VectorXd& q) {
+  const optim::Objective fitness = [&](const Eigen::Ref<const Eigen::VectorXd>& q) {
     return epochLogLikelihood(q(0), q(1), k == 3 ? q(2) : e.mean.z());
   };
   long evals = 0;

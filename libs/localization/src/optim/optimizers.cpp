@@ -19,11 +19,19 @@ double sign(double v) { return (v > 0) - (v < 0); }
 
 // Unit vector towards `to`, or zero when `to` is (numerically) `from`: the guard for a beetle
 // that is its own personal or swarm best.
-Eigen::VectorXd towards(const Eigen::VectorXd& from, const Eigen::VectorXd& to) {
-  const Eigen::VectorXd d = to - from;
+template <class A, class B>
+SmallVec towards(const A& from, const B& to) {
+  SmallVec d = to - from;
   const double n = d.norm();
-  return n > 1e-300 ? Eigen::VectorXd(d / n) : Eigen::VectorXd::Zero(d.size());
+  if (n > 1e-300)
+    d /= n;
+  else
+    d.setZero();
+  return d;
 }
+
+// Clamps x into the box, in place.
+void clampInto(SmallVec& x, const Box& box) { x = x.cwiseMax(box.lo).cwiseMin(box.hi); }
 
 // BAS, Jiang & Li 2017; eq. (8)-(14) for a single beetle.
 class Bas : public Optimizer {
@@ -70,7 +78,7 @@ class Ibas : public Optimizer {
     for (int i = 0; i < s.population; ++i) pos.row(i) = uniformIn(box, rng).transpose();
     Result r;
     double best = 0.0;
-    const Objective neg = [&f](const Eigen::VectorXd& x) { return -f(x); };
+    const Objective neg = [&f](const Eigen::Ref<const Eigen::VectorXd>& x) { return -f(x); };
     r.best =
         swarm.maximize(pos, neg, box, s.iterations, s.initial_step, rng, &best, &r.evaluations);
     r.value = -best;
@@ -265,9 +273,10 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
                                       double* best_fitness, long* evaluations) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const auto n = x.rows(), k = x.cols();
+  if (k > 32) throw std::invalid_argument("BeetleSwarm: at most 32 dimensions");
   long evals = 0;
   const Eigen::VectorXd vmax = params_.max_speed * (box.hi - box.lo);
-  velocity_.setZero(n, k);
+  velocity_.setZero(n, k);  // keeps its storage when the size repeats
   personal_best_ = x;
   personal_value_.resize(n);
   current_value_.resize(n);
@@ -278,20 +287,21 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
     ++evals;
     if (personal_value_(i) > personal_value_(best_i)) best_i = i;
   }
-  Eigen::VectorXd swarm_best = personal_best_.row(best_i).transpose();
+  SmallVec swarm_best = personal_best_.row(best_i).transpose();
   double swarm_value = personal_value_(best_i);
   double step = initial_step, d = params_.antenna;
+  SmallVec xi(k), v(k), probe(k), moved(k);
   for (int it = 0; it < iterations; ++it) {
     const double omega =
         inertiaWeight(it, iterations, params_.omega_max, params_.omega_min);  // eq. (18)
     Eigen::Index iter_best = 0;
     double iter_value = -1e300;
     for (Eigen::Index i = 0; i < n; ++i) {
-      const Eigen::VectorXd xi = x.row(i).transpose();
+      xi = x.row(i).transpose();
       // Eq. (21): inertia plus pulls towards the personal and the swarm best.
-      Eigen::VectorXd v = omega * velocity_.row(i).transpose() +
-                          params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
-                          params_.c2 * u(rng) * towards(xi, swarm_best);
+      v = omega * velocity_.row(i).transpose() +
+          params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
+          params_.c2 * u(rng) * towards(xi, swarm_best);
       v = v.cwiseMax(-vmax).cwiseMin(vmax);
       // A beetle that is both its own and the swarm's best gets no pull, and its inertia dies
       // away: it would stop searching. It then explores like a BAS beetle, along a random unit
@@ -306,9 +316,14 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
       // has shrunk below the eq. (13) length, so that the two antennae sample at the scale
       // the beetle moves at.
       const double antenna = std::min(d, step);
-      const double fr = f(box.clamp(xi + v * antenna / 2.0));
-      const double fl = f(box.clamp(xi - v * antenna / 2.0));
-      const Eigen::VectorXd moved = box.clamp(xi + step * v * sign(fr - fl));
+      probe = xi + v * antenna / 2.0;
+      clampInto(probe, box);
+      const double fr = f(probe);
+      probe = xi - v * antenna / 2.0;
+      clampInto(probe, box);
+      const double fl = f(probe);
+      moved = xi + step * v * sign(fr - fl);
+      clampInto(moved, box);
       double fm = f(moved);
       evals += 3;
       velocity_.row(i) = v.transpose();
@@ -320,7 +335,7 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
       }
       if (fm > personal_value_(i)) {
         personal_value_(i) = fm;
-        personal_best_.row(i) = moved.transpose();
+        personal_best_.row(i) = x.row(i);
       }
       if (fm > iter_value) {
         iter_value = fm;
@@ -328,35 +343,33 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
       }
       if (fm > swarm_value) {
         swarm_value = fm;
-        swarm_best = moved;
+        swarm_best = x.row(i).transpose();
       }
     }
     // Eq. (25): Cauchy mutation of this iteration's best beetle, kept only if it improves.
-    const Eigen::VectorXd xb = x.row(iter_best).transpose();
-    Eigen::VectorXd mutated;
+    xi = x.row(iter_best).transpose();
     if (params_.frame_invariant_mutation) {
-      const Eigen::VectorXd mean = x.colwise().mean().transpose();
-      const Eigen::VectorXd spread =
-          ((x.rowwise() - mean.transpose()).array().square().colwise().sum() /
-           std::max<double>(n - 1, 1))
-              .sqrt()
-              .transpose();
-      mutated = box.clamp(cauchyMutationScaled(xb, spread, u(rng)));
+      probe = x.colwise().mean().transpose();  // the swarm's mean, then its spread per axis
+      for (Eigen::Index c = 0; c < k; ++c)
+        probe(c) =
+            std::sqrt((x.col(c).array() - probe(c)).square().sum() / std::max<double>(n - 1, 1));
+      moved = xi + 0.03 * std::tan((0.35 * u(rng) - 0.2) * M_PI) * probe;
     } else {
-      mutated = box.clamp(cauchyMutationPaper(xb, u(rng)));
+      moved = xi * (1.0 + 0.03 * std::tan((0.35 * u(rng) - 0.2) * M_PI));
     }
-    const double fmu = f(mutated);
+    clampInto(moved, box);
+    const double fmu = f(moved);
     ++evals;
     if (fmu > iter_value) {
-      x.row(iter_best) = mutated.transpose();
+      x.row(iter_best) = moved.transpose();
       current_value_(iter_best) = fmu;
       if (fmu > personal_value_(iter_best)) {
         personal_value_(iter_best) = fmu;
-        personal_best_.row(iter_best) = mutated.transpose();
+        personal_best_.row(iter_best) = moved.transpose();
       }
       if (fmu > swarm_value) {
         swarm_value = fmu;
-        swarm_best = mutated;
+        swarm_best = moved;
       }
     }
     if (params_.schedule == "paper")
@@ -367,7 +380,7 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
   }
   if (best_fitness) *best_fitness = swarm_value;
   if (evaluations) *evaluations += evals;
-  return swarm_best;
+  return Eigen::VectorXd(swarm_best);
 }
 
 std::unique_ptr<Optimizer> makeOptimizer(const std::string& name) {
@@ -394,38 +407,40 @@ std::vector<Benchmark> benchmarks(int dim) {
     return Box{Eigen::VectorXd::Constant(dim, lo), Eigen::VectorXd::Constant(dim, hi)};
   };
   std::vector<Benchmark> out;
+  out.push_back({"f1_sphere", box(-100, 100), 0.0,
+                 [](const Eigen::Ref<const Eigen::VectorXd>& x) { return x.squaredNorm(); }});
   out.push_back(
-      {"f1_sphere", box(-100, 100), 0.0, [](const Eigen::VectorXd& x) { return x.squaredNorm(); }});
-  out.push_back({"f2_schwefel_2.22", box(-10, 10), 0.0, [](const Eigen::VectorXd& x) {
-                   return x.cwiseAbs().sum() + x.cwiseAbs().prod();
-                 }});
-  out.push_back({"f3_step", box(-100, 100), 0.0, [](const Eigen::VectorXd& x) {
+      {"f2_schwefel_2.22", box(-10, 10), 0.0, [](const Eigen::Ref<const Eigen::VectorXd>& x) {
+         return x.cwiseAbs().sum() + x.cwiseAbs().prod();
+       }});
+  out.push_back({"f3_step", box(-100, 100), 0.0, [](const Eigen::Ref<const Eigen::VectorXd>& x) {
                    double s = 0;
                    for (Eigen::Index i = 0; i < x.size(); ++i)
                      s += std::pow(std::floor(x(i) + 0.5), 2);
                    return s;
                  }});
-  out.push_back({"f4_rastrigin", box(-5.12, 5.12), 0.0, [](const Eigen::VectorXd& x) {
-                   double s = 10.0 * x.size();
-                   for (Eigen::Index i = 0; i < x.size(); ++i)
-                     s += x(i) * x(i) - 10 * std::cos(2 * M_PI * x(i));
-                   return s;
-                 }});
-  out.push_back({"f5_griewank", box(-600, 600), 0.0, [](const Eigen::VectorXd& x) {
-                   double p = 1.0;
-                   for (Eigen::Index i = 0; i < x.size(); ++i)
-                     p *= std::cos(x(i) / std::sqrt(i + 1.0));
-                   return x.squaredNorm() / 4000.0 - p + 1.0;
-                 }});
+  out.push_back(
+      {"f4_rastrigin", box(-5.12, 5.12), 0.0, [](const Eigen::Ref<const Eigen::VectorXd>& x) {
+         double s = 10.0 * x.size();
+         for (Eigen::Index i = 0; i < x.size(); ++i)
+           s += x(i) * x(i) - 10 * std::cos(2 * M_PI * x(i));
+         return s;
+       }});
+  out.push_back(
+      {"f5_griewank", box(-600, 600), 0.0, [](const Eigen::Ref<const Eigen::VectorXd>& x) {
+         double p = 1.0;
+         for (Eigen::Index i = 0; i < x.size(); ++i) p *= std::cos(x(i) / std::sqrt(i + 1.0));
+         return x.squaredNorm() / 4000.0 - p + 1.0;
+       }});
   Box mich{Eigen::Vector2d(-6, 0), Eigen::Vector2d(-1, 2)};
-  out.push_back({"michalewicz", mich, -1.9668, [](const Eigen::VectorXd& x) {
+  out.push_back({"michalewicz", mich, -1.9668, [](const Eigen::Ref<const Eigen::VectorXd>& x) {
                    double s = 0;
                    for (Eigen::Index i = 0; i < x.size(); ++i)
                      s -= std::sin(x(i)) * std::pow(std::sin((i + 1) * x(i) * x(i) / M_PI), 20);
                    return s;
                  }});
   Box gp{Eigen::Vector2d(-2, -2), Eigen::Vector2d(2, 2)};
-  out.push_back({"goldstein_price", gp, 3.0, [](const Eigen::VectorXd& v) {
+  out.push_back({"goldstein_price", gp, 3.0, [](const Eigen::Ref<const Eigen::VectorXd>& v) {
                    const double x = v(0), y = v(1);
                    const double a = 1 + std::pow(x + y + 1, 2) * (19 - 14 * x + 3 * x * x - 14 * y +
                                                                   6 * x * y + 3 * y * y);

@@ -13,7 +13,10 @@
 namespace uwbloc::optim {
 
 using Rng = std::mt19937_64;
-using Objective = std::function<double(const Eigen::VectorXd&)>;
+/// Objectives see their argument through a Ref, so callers can pass stack vectors.
+using Objective = std::function<double(const Eigen::Ref<const Eigen::VectorXd>&)>;
+/// A point of at most 32 dimensions on the stack: the swarm's inner loop allocates nothing.
+using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, Eigen::ColMajor, 32, 1>;
 
 struct Box {
   Eigen::VectorXd lo, hi;
