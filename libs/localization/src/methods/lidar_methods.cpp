@@ -55,7 +55,9 @@ void addLidarMethods(Registry& r) {
                   {"swarm", "ibas"},
                   {"ibas_iters", "1"},
                   {"ibas_step", "0.1"},
-                  {"ibas_theta", "0"}}));
+                  {"ibas_theta", "0"},
+                  {"ibas_resample", "1"},
+                  {"landmarks", "0"}}));
   r.add(pfMethod("uwb-pf",
                  "UWB + odometry particle filter (the UWB single-sensor particle baseline), "
                  "NLOS test against the odometry-predicted pose",

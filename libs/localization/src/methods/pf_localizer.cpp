@@ -27,6 +27,7 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   optim::IbasParams ibas;
   ibas.frame_invariant_mutation = true;  // eq. (25) as printed scales with the map coordinates
   ibas.antenna = params_.ibas_step;
+  ibas.move_mask = Eigen::Vector3d(1.0, 1.0, params_.ibas_theta ? 1.0 : 0.0);
   swarm_ = optim::BeetleSwarm(ibas);
   if ((use_lidar_ || params_.init == "global" || params_.nlos == "raycast") && !context.map)
     throw ParamError("this method needs a map: give the manifest's [dataset] map");
@@ -107,7 +108,7 @@ void PfLocalizer::updateRange(const AcceptedRange& r, const ParticleEstimate& e)
 void PfLocalizer::swarmMove() {
   ParticleSet& ps = pf_.particles();
   const auto n = static_cast<Eigen::Index>(ps.size());
-  const Eigen::Index k = params_.ibas_theta ? 3 : 2;
+  const Eigen::Index k = 3;  // the heading is always part of the fitness; ibas_theta moves it
   const ParticleEstimate e = pf_.estimate();
   swarm_pos_.resize(n, k);
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -127,9 +128,8 @@ void PfLocalizer::swarmMove() {
     box.lo(c) = std::min(box.lo(c), swarm_pos_.col(c).minCoeff());
     box.hi(c) = std::max(box.hi(c), swarm_pos_.col(c).maxCoeff());
   }
-  // Heading of beetle i when the swarm moves x, y only: found through its row.
   const optim::Objective fitness = [&](const Eigen::Ref<const Eigen::VectorXd>& q) {
-    return epochLogLikelihood(q(0), q(1), k == 3 ? q(2) : e.mean.z());
+    return epochLogLikelihood(q(0), q(1), q(2));
   };
   long evals = 0;
   double best = 0.0;
@@ -139,7 +139,7 @@ void PfLocalizer::swarmMove() {
     const auto u = static_cast<size_t>(i);
     ps.x[u] = swarm_pos_(i, 0);
     ps.y[u] = swarm_pos_(i, 1);
-    if (k == 3) ps.theta[u] = wrapAngle(swarm_pos_(i, 2));
+    ps.theta[u] = wrapAngle(swarm_pos_(i, 2));
   }
   // Diversity: a collapsed swarm would freeze the estimate.
   double mx = 0, my = 0;
@@ -190,6 +190,7 @@ std::optional<PoseEstimate> PfLocalizer::finishEpoch() {
   if (params_.swarm == "ibas") {
     pf_.normalize();
     swarmMove();
+    if (params_.ibas_resample) pf_.normalizeAndResample();
   } else {
     pf_.normalizeAndResample();
   }

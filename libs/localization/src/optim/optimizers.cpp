@@ -303,12 +303,14 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
           params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
           params_.c2 * u(rng) * towards(xi, swarm_best);
       v = v.cwiseMax(-vmax).cwiseMin(vmax);
+      if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
       // A beetle that is both its own and the swarm's best gets no pull, and its inertia dies
       // away: it would stop searching. It then explores like a BAS beetle, along a random unit
       // direction (eq. 8).
       if (v.norm() < 1e-3) {
         std::normal_distribution<double> g(0.0, 1.0);
         for (Eigen::Index j = 0; j < k; ++j) v(j) = g(rng);
+        if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
         v /= std::max(v.norm(), 1e-300);
       }
       // Eq. (22)-(24): antennae along V, then a step along V towards the better antenna. The
@@ -353,6 +355,7 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
       for (Eigen::Index c = 0; c < k; ++c)
         probe(c) =
             std::sqrt((x.col(c).array() - probe(c)).square().sum() / std::max<double>(n - 1, 1));
+      if (params_.move_mask.size() == k) probe = probe.cwiseProduct(params_.move_mask);
       moved = xi + 0.03 * std::tan((0.35 * u(rng) - 0.2) * M_PI) * probe;
     } else {
       moved = xi * (1.0 + 0.03 * std::tan((0.35 * u(rng) - 0.2) * M_PI));

@@ -49,6 +49,7 @@ struct PfLocalizerParams {
   double ibas_step = 0.05;             ///< IBAS initial step [m, rad]
   bool ibas_theta = true;              ///< IBAS moves the heading too (else x, y only)
   double min_spread = 0.02;            ///< inject diversity below this swarm spread [m]
+  bool ibas_resample = false;        ///< after the swarm, also resample when ESS/N < ess
   bool landmarks = true;               ///< build and save a corner-landmark map along the run
   double landmark_sigma = 0.05;        ///< std of a corner observation [m]
 
@@ -80,6 +81,7 @@ struct PfLocalizerParams {
     v("ibas_step", ibas_step, "IBAS initial step [m, rad]");
     v("ibas_theta", ibas_theta, "IBAS moves the heading too");
     v("min_spread", min_spread, "inject diversity when the swarm spread falls below [m]");
+    v("ibas_resample", ibas_resample, "after the swarm, also resample when ESS/N < ess");
     v("landmarks", landmarks, "build a corner-landmark map (saved as <method>_landmarks.csv)");
     v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
   }

@@ -74,6 +74,9 @@ struct IbasParams {
   std::string schedule = "geometric";
   /// A beetle keeps its place when its eq. (24) step would make it worse.
   bool greedy = true;
+  /// Per-dimension mask on the velocity (empty: all 1). A 0 keeps that coordinate of every
+  /// beetle fixed while the fitness still sees it (PF-IBAS moving x, y but not the heading).
+  Eigen::VectorXd move_mask;
   double final_step_ratio = 1e-3;
 };
 
@@ -88,6 +91,8 @@ class BeetleSwarm {
                            int iterations, double initial_step, Rng& rng, double* best_fitness,
                            long* evaluations);
   const IbasParams& params() const { return params_; }
+  /// Fitness of each beetle at its position after the last maximize() (row order).
+  const Eigen::VectorXd& values() const { return current_value_; }
 
  private:
   IbasParams params_;
