@@ -109,6 +109,7 @@ TEST(MrptDemo, PfIbasAgainstTheBaselines) {
       ibas.metrics.rmse_2d, ibas.rmse_2d_std, sir.metrics.rmse_2d, sir.rmse_2d_std,
       uwb_pf.metrics.rmse_2d, lidar.metrics.rmse_2d);
   EXPECT_LE(ibas.metrics.rmse_2d, sir.metrics.rmse_2d);
+  EXPECT_LE(ibas.metrics.rmse_2d, 0.12);  // with the log's measured range noise (manifest)
   EXPECT_LT(ibas.metrics.rmse_2d, uwb_pf.metrics.rmse_2d);
   EXPECT_LT(ibas.metrics.rmse_2d, lidar.metrics.rmse_2d);
   bool spread_written = false;

@@ -72,8 +72,15 @@ BoundSeries posteriorCrlb(const data::Dataset& ds, const data::BoundsSpec& spec)
     out.t.push_back(t);
     out.position_variance.push_back(p(0, 0) + p(1, 1));
   };
+  // Ranges sharing a timestamp form one epoch: the bound is recorded once all are in.
+  bool pending = false;
+  double pending_t = 0.0;
   for (const auto& e : ds.events) {
     const double t = loc::eventTime(e);
+    if (pending && t > pending_t) {
+      record(pending_t);
+      pending = false;
+    }
     if (t < ds.ground_truth.front().t || t > ds.ground_truth.back().t) continue;
     if (cv && t > last_t) {
       // Prediction with the linear CV model: J = (Q + F J^-1 F^T)^-1.
@@ -116,8 +123,10 @@ BoundSeries posteriorCrlb(const data::Dataset& ds, const data::BoundsSpec& spec)
     h(1) = hp(1);
     if (!cv) h(2) = hp(2);
     j += h.transpose() * h / var_r;
-    record(t);
+    pending = true;
+    pending_t = t;
   }
+  if (pending) record(pending_t);
   return out;
 }
 

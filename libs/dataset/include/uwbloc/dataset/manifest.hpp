@@ -21,7 +21,8 @@
 //   height = 1.12    lever_arm_x = 0.16    lever_arm_y = 0
 //
 //   [bounds]                                   (optional: allows Cramér–Rao bounds)
-//   range_sigma = 0.1                          LOS range noise std [m]
+//   range_sigma = 0.1                          LOS range noise std [m]; also the default
+//                                              `sigma` of every UWB method on this dataset
 //   accel_psd = 0.1                            CV motion noise for the posterior bound [m^2/s^3]
 //   motion = cv | odometry                     motion model of the posterior bound
 //   odom_sigma_xy_per_m = 0.02                 odometry noise (motion = odometry)

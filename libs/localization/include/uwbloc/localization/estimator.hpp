@@ -51,6 +51,9 @@ struct EstimatorContext {
   double initial_time = 0.0;
   uint64_t seed = 1;
   std::shared_ptr<const OccupancyMap> map;  ///< the dataset's map, when it has one
+  /// The dataset's measured LOS range noise, when its manifest states one: the default of
+  /// every method's `sigma` parameter (a spec or config value still wins).
+  std::optional<double> range_sigma;
 };
 
 class Estimator {

@@ -63,6 +63,11 @@ MethodInfo makeMethod(
   info.make = [name, factory](ParamSet& set, const EstimatorContext& ctx) {
     Params params;
     set.setContext("method '" + name + "'");
+    if (ctx.range_sigma && !set.has("sigma")) {
+      bool has_sigma = false;
+      params.visit([&](const char* key, auto&, const char*) { has_sigma |= std::string(key) == "sigma"; });
+      if (has_sigma) set.set("sigma", std::to_string(*ctx.range_sigma));
+    }
     loadParams(set, params);
     std::unique_ptr<Estimator> est;
     if (factory) {
