@@ -161,6 +161,10 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   if (ini.get("tag", "lever_arm_x") || ini.get("tag", "lever_arm_y"))
     m.lever_arm = Eigen::Vector2d(ini.getDouble("tag", "lever_arm_x", 0.0),
                                   ini.getDouble("tag", "lever_arm_y", 0.0));
+  if (ini.get("uwb", "sigma")) {
+    m.uwb_sigma = ini.getDouble("uwb", "sigma");
+    if (!(*m.uwb_sigma > 0)) throwInputError(path, ini.lineOf("uwb", "sigma"), "[uwb] sigma must be > 0");
+  }
   if (ini.hasSection("bounds")) {
     BoundsSpec b;
     b.range_sigma = ini.getDouble("bounds", "range_sigma", b.range_sigma);

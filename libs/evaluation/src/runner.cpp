@@ -12,7 +12,7 @@ loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed) {
   ctx.anchors = dataset.anchors;
   ctx.seed = seed;
   ctx.map = dataset.map;
-  if (dataset.manifest.bounds) ctx.range_sigma = dataset.manifest.bounds->range_sigma;
+  ctx.range_sigma = dataset.manifest.uwb_sigma;
   if (!dataset.ground_truth.empty()) {
     ctx.initial_pose = dataset.ground_truth.front().pose;
     ctx.initial_time = dataset.ground_truth.front().t;

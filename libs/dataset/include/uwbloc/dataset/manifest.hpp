@@ -20,9 +20,12 @@
 //   [tag]                                      (optional: overrides the rawlog's sensor pose)
 //   height = 1.12    lever_arm_x = 0.16    lever_arm_y = 0
 //
+//   [uwb]                                      (optional)
+//   sigma = 0.10                               range noise measured on this dataset [m]: the
+//                                              default `sigma` of every UWB method on it
+//
 //   [bounds]                                   (optional: allows Cramér–Rao bounds)
-//   range_sigma = 0.1                          LOS range noise std [m]; also the default
-//                                              `sigma` of every UWB method on this dataset
+//   range_sigma = 0.1                          LOS range noise std [m]
 //   accel_psd = 0.1                            CV motion noise for the posterior bound [m^2/s^3]
 //   motion = cv | odometry                     motion model of the posterior bound
 //   odom_sigma_xy_per_m = 0.02                 odometry noise (motion = odometry)
@@ -66,6 +69,7 @@ struct Manifest {
   std::optional<double> tag_height;
   std::optional<Eigen::Vector2d> lever_arm;
   std::optional<BoundsSpec> bounds;
+  std::optional<double> uwb_sigma;  ///< [uwb] sigma: the methods' default range noise [m]
 };
 
 /// Loads and validates a manifest; throws InputError naming the file and line.
