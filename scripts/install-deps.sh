@@ -2,7 +2,7 @@
 # Installs the Debian 12 packages uwbloc needs, only those missing. Uses sudo when not root.
 set -euo pipefail
 packages=(build-essential cmake ninja-build ccache pkg-config
-          libmrpt-dev mrpt-common libeigen3-dev libcli11-dev nlohmann-json3-dev
+          libmrpt-dev mrpt-common libeigen3-dev libceres-dev libcli11-dev nlohmann-json3-dev
           libgtest-dev libbenchmark-dev)
 if [ "${UWBLOC_WITH_MRPT_APPS:-0}" = "1" ]; then packages+=(mrpt-apps); fi
 missing=()

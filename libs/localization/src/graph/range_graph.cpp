@@ -1,0 +1,102 @@
+#include "uwbloc/localization/graph/range_graph.hpp"
+
+#include <stdexcept>
+
+namespace uwbloc::loc::graph {
+
+int RangeGraph::addPose(const Eigen::Vector3d& initial) {
+  poses_.push_back(initial);
+  return static_cast<int>(poses_.size()) - 1;
+}
+
+void RangeGraph::setAnchors(const std::vector<uwb::Anchor>& anchors) {
+  anchors_ = anchors;
+  anchor_prior_.clear();
+  for (const auto& a : anchors) anchor_prior_.push_back(a.position);
+  biases_.assign(anchors.size(), 0.0);
+}
+
+void RangeGraph::addOdometry(int from, int to, const Eigen::Vector3d& delta) {
+  odometry_.push_back({from, to, delta});
+}
+
+void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag) {
+  for (size_t i = 0; i < anchors_.size(); ++i)
+    if (anchors_[i].id == anchor_id) {
+      ranges_.push_back({pose, static_cast<int>(i), range, tag});
+      return;
+    }
+  throw std::invalid_argument("RangeGraph: unknown anchor " + std::to_string(anchor_id));
+}
+
+void RangeGraph::build(const RangeGraphParams& params) {
+  params_ = params;
+  problem_ = std::make_unique<ceres::Problem>();
+  ceres::Problem& p = *problem_;
+  for (auto& pose : poses_)
+    p.AddParameterBlock(pose.data(), 3, new ceres::AutoDiffManifold<PosePlus, 3, 3>);
+  // An anchor's height is held: a planar robot's ranges barely observe it, and a free z trades
+  // off against x, y (heights are easy to survey).
+  for (auto& a : anchors_)
+    p.AddParameterBlock(a.position.data(), 3, new ceres::SubsetManifold(3, {2}));
+  for (auto& b : biases_) p.AddParameterBlock(&b, 1);
+  for (const auto& r : ranges_) {
+    ceres::LossFunction* loss = nullptr;
+    if (params_.loss == "huber")
+      loss = new ceres::HuberLoss(params_.loss_scale);
+    else if (params_.loss == "cauchy")
+      loss = new ceres::CauchyLoss(params_.loss_scale);
+    p.AddResidualBlock(RangeCost::Create(r.range, r.tag, params_.range_sigma), loss,
+                       poses_[static_cast<size_t>(r.pose)].data(),
+                       anchors_[static_cast<size_t>(r.anchor)].position.data(),
+                       &biases_[static_cast<size_t>(r.anchor)]);
+  }
+  for (const auto& o : odometry_)
+    p.AddResidualBlock(RelativePoseCost::Create(o.delta, params_.odometry_sigma), nullptr,
+                       poses_[static_cast<size_t>(o.from)].data(),
+                       poses_[static_cast<size_t>(o.to)].data());
+  for (size_t i = 0; i < anchors_.size(); ++i) {
+    if (params_.estimate_anchors) {
+      p.AddResidualBlock(PriorCost<3>::Create(anchor_prior_[i], Eigen::Vector3d::Constant(
+                                                                    params_.anchor_prior_sigma)),
+                         nullptr, anchors_[i].position.data());
+    } else {
+      p.SetParameterBlockConstant(anchors_[i].position.data());
+    }
+    if (params_.estimate_bias) {
+      p.AddResidualBlock(
+          PriorCost<1>::Create(Eigen::Matrix<double, 1, 1>::Zero(),
+                               Eigen::Matrix<double, 1, 1>::Constant(params_.bias_prior_sigma)),
+          nullptr, &biases_[i]);
+    } else {
+      p.SetParameterBlockConstant(&biases_[i]);
+    }
+  }
+  // Gauge: fixed anchors fix the frame. Ranges alone do not change when every anchor and pose
+  // is moved or rotated together, and the anchor priors only fix that motion to within their
+  // own error; so with estimated anchors the first anchor and the first pose are held: two
+  // points fix the translation and the rotation.
+  if (params_.estimate_anchors && !poses_.empty()) {
+    p.SetParameterBlockConstant(poses_.front().data());
+    if (!anchors_.empty()) p.SetParameterBlockConstant(anchors_.front().position.data());
+  }
+}
+
+GraphSolution RangeGraph::solve() {
+  if (!problem_) throw std::logic_error("RangeGraph::solve() before build()");
+  ceres::Solver::Options options;
+  options.max_num_iterations = params_.max_iterations;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  options.num_threads = 2;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, problem_.get(), &summary);
+  GraphSolution out;
+  out.usable = summary.IsSolutionUsable();
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.initial_cost = summary.initial_cost;
+  out.final_cost = summary.final_cost;
+  out.report = summary.BriefReport();
+  return out;
+}
+
+}  // namespace uwbloc::loc::graph
