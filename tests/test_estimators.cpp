@@ -61,6 +61,9 @@ TEST_P(EveryMethod, RejectsBadMeasurementsAndNeverEmitsNaN) {
     ASSERT_TRUE(p.covariance.allFinite()) << c.spec << " at t=" << p.t;
   }
   const auto& rej = run.statistics.rejected;
+  if (c.spec == "odom" || c.spec == "graph-uwb-odom") {
+    EXPECT_GT(rej.count("non_finite_odometry"), 0u);
+  }
   if (c.spec == "odom") {
     EXPECT_GT(rej.count("non_finite_odometry"), 0u);
   } else {
@@ -76,7 +79,8 @@ TEST_P(EveryMethod, RejectsBadMeasurementsAndNeverEmitsNaN) {
 INSTANTIATE_TEST_SUITE_P(Registry, EveryMethod,
                          ::testing::Values(Case{"uwb-ls", 0.15}, Case{"uwb-gn", 0.15},
                                            Case{"uwb-chan", 0.15}, Case{"uwb-kf", 0.12},
-                                           Case{"uwb-ekf", 0.10}, Case{"odom", 1e-6}),
+                                           Case{"uwb-ekf", 0.10}, Case{"odom", 1e-6},
+                                           Case{"graph-uwb-odom", 0.05}),
                          [](const auto& info) {
                            std::string n = info.param.spec;
                            for (auto& ch : n)

@@ -162,6 +162,8 @@ TEST(RangeSlam, RobustLossAgainstNlosOutliers) {
     EXPECT_TRUE(g.solve().usable);
     std::printf("[ GRAPH    ] 10%% NLOS (+1 m), loss %-6s: pose rmse %.4f m\n", loss,
                 s.poseRmse(g));
-    if (std::string(loss) == "cauchy") EXPECT_LT(s.poseRmse(g), 0.08);
+    if (std::string(loss) == "cauchy") {
+      EXPECT_LT(s.poseRmse(g), 0.08);
+    }
   }
 }

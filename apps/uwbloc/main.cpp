@@ -11,6 +11,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
+#include "uwbloc/dataset/plaza_import.hpp"
 #include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/evaluation/optimizer_table.hpp"
 #include "uwbloc/evaluation/report.hpp"
@@ -158,7 +159,8 @@ int main(int argc, char** argv) {
       "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
   import
       ->add_option("format", format,
-                   "source format: hanyang (one dynamic run folder) or carmen (a .log or .log.gz)")
+                   "source format: hanyang (one dynamic run folder), carmen (a .log or .log.gz) or "
+                   "plaza (the Plaza folder)")
       ->required();
   import
       ->add_option("source", source,
@@ -237,12 +239,17 @@ int main(int argc, char** argv) {
         const auto s = data::importHanyang(src, import_out, hanyang);
         std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors and "
                   << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest << "\n";
+      } else if (format == "plaza") {
+        const auto s = data::importPlaza(src, import_out);
+        std::cout << "Imported " << s.ranges << " ranges to " << s.anchors << " beacons and "
+                  << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest << "\n";
       } else if (format == "carmen") {
         const auto s = data::importCarmen(src, import_out);
         std::cout << "Imported " << s.ranges << " scans and " << s.ground_truth_rows
                   << " reference poses\nManifest: " << s.manifest << "\n";
       } else {
-        std::cerr << "error: unknown import format '" << format << "' (known: hanyang, carmen)\n";
+        std::cerr << "error: unknown import format '" << format
+                  << "' (known: hanyang, carmen, plaza)\n";
         return 2;
       }
       return 0;

@@ -163,7 +163,8 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
                                   ini.getDouble("tag", "lever_arm_y", 0.0));
   if (ini.get("uwb", "sigma")) {
     m.uwb_sigma = ini.getDouble("uwb", "sigma");
-    if (!(*m.uwb_sigma > 0)) throwInputError(path, ini.lineOf("uwb", "sigma"), "[uwb] sigma must be > 0");
+    if (!(*m.uwb_sigma > 0))
+      throwInputError(path, ini.lineOf("uwb", "sigma"), "[uwb] sigma must be > 0");
   }
   if (ini.hasSection("bounds")) {
     BoundsSpec b;

@@ -70,9 +70,9 @@ RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint6
     }
   }
   const auto t0 = Clock::now();
-  auto last = estimator->finish();
+  auto last = estimator->finishAll();
   busy += std::chrono::duration<double>(Clock::now() - t0).count();
-  keep(std::move(last));
+  for (auto& e : last) keep(std::move(e));
   if (progress && Clock::now() - wall_start > std::chrono::seconds(2)) progress(1.0, spec);
   result.statistics = estimator->statistics();
   result.artifacts = estimator->artifacts();

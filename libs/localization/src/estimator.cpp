@@ -28,6 +28,13 @@ std::optional<PoseEstimate> Estimator::process(const Event& event) {
 
 std::optional<PoseEstimate> Estimator::finish() { return guard(doFinish()); }
 
+std::vector<PoseEstimate> Estimator::finishAll() {
+  std::vector<PoseEstimate> out;
+  for (auto& e : doFinishAll())
+    if (auto ok = guard(e)) out.push_back(*ok);
+  return out;
+}
+
 std::optional<PoseEstimate> Estimator::guard(std::optional<PoseEstimate> estimate) {
   if (!estimate) return estimate;
   if (estimate->pose.allFinite() && estimate->covariance.allFinite() && std::isfinite(estimate->t))

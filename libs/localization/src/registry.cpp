@@ -1,5 +1,6 @@
 #include "uwbloc/localization/registry.hpp"
 
+#include "uwbloc/localization/methods/graph_smoother.hpp"
 #include "uwbloc/localization/methods/multilateration_estimator.hpp"
 #include "uwbloc/localization/methods/odometry_estimator.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
@@ -37,6 +38,11 @@ Registry makeBuiltin() {
   r.add(makeMethod<OdometryEstimator, OdometryParams>(
       "odom", "Odometry only: dead reckoning from the first ground-truth pose", {"odometry"}));
   addLidarMethods(r);
+  r.add(makeMethod<GraphSmoother, GraphSmootherParams>(
+      "graph-uwb-odom",
+      "Batch smoothing of range + odometry over a Ceres graph (robust loss, optional bias and "
+      "anchor self-calibration)",
+      {"odometry", "ranges"}));
   return r;
 }
 

@@ -16,8 +16,9 @@ void RangeGraph::setAnchors(const std::vector<uwb::Anchor>& anchors) {
   biases_.assign(anchors.size(), 0.0);
 }
 
-void RangeGraph::addOdometry(int from, int to, const Eigen::Vector3d& delta) {
-  odometry_.push_back({from, to, delta});
+void RangeGraph::addOdometry(int from, int to, const Eigen::Vector3d& delta,
+                             const std::optional<Eigen::Vector3d>& sigma) {
+  odometry_.push_back({from, to, delta, sigma});
 }
 
 void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag) {
@@ -52,8 +53,8 @@ void RangeGraph::build(const RangeGraphParams& params) {
                        &biases_[static_cast<size_t>(r.anchor)]);
   }
   for (const auto& o : odometry_)
-    p.AddResidualBlock(RelativePoseCost::Create(o.delta, params_.odometry_sigma), nullptr,
-                       poses_[static_cast<size_t>(o.from)].data(),
+    p.AddResidualBlock(RelativePoseCost::Create(o.delta, o.sigma.value_or(params_.odometry_sigma)),
+                       nullptr, poses_[static_cast<size_t>(o.from)].data(),
                        poses_[static_cast<size_t>(o.to)].data());
   for (size_t i = 0; i < anchors_.size(); ++i) {
     if (params_.estimate_anchors) {

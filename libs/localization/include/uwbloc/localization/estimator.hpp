@@ -64,6 +64,9 @@ class Estimator {
   std::optional<PoseEstimate> process(const Event& event);
   /// Called once at the end of the stream, for methods that buffer (epochs).
   std::optional<PoseEstimate> finish();
+  /// The same for batch methods (smoothers), which produce their whole trajectory at the end;
+  /// for the others it is finish()'s single estimate, if any.
+  std::vector<PoseEstimate> finishAll();
 
   const std::string& name() const { return name_; }
   const EstimatorStatistics& statistics() const { return stats_; }
@@ -80,6 +83,10 @@ class Estimator {
  protected:
   virtual std::optional<PoseEstimate> doProcess(const Event& event) = 0;
   virtual std::optional<PoseEstimate> doFinish() { return std::nullopt; }
+  virtual std::vector<PoseEstimate> doFinishAll() {
+    auto e = doFinish();
+    return e ? std::vector<PoseEstimate>{*e} : std::vector<PoseEstimate>{};
+  }
   /// Forget the state after divergence; the next events re-initialise.
   virtual void reset() {}
 

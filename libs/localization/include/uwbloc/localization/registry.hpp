@@ -65,7 +65,8 @@ MethodInfo makeMethod(
     set.setContext("method '" + name + "'");
     if (ctx.range_sigma && !set.has("sigma")) {
       bool has_sigma = false;
-      params.visit([&](const char* key, auto&, const char*) { has_sigma |= std::string(key) == "sigma"; });
+      params.visit(
+          [&](const char* key, auto&, const char*) { has_sigma |= std::string(key) == "sigma"; });
       if (has_sigma) set.set("sigma", std::to_string(*ctx.range_sigma));
     }
     loadParams(set, params);

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -124,7 +125,9 @@ class RangeGraph {
  public:
   int addPose(const Eigen::Vector3d& initial);
   void setAnchors(const std::vector<uwb::Anchor>& anchors);
-  void addOdometry(int from, int to, const Eigen::Vector3d& delta);
+  /// A relative-pose edge; `sigma` (x, y, theta) replaces the parameters' odometry_sigma.
+  void addOdometry(int from, int to, const Eigen::Vector3d& delta,
+                   const std::optional<Eigen::Vector3d>& sigma = std::nullopt);
   void addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag);
 
   /// Creates the Ceres problem. Gauge: with fixed anchors the frame is fixed by them; when
@@ -146,6 +149,7 @@ class RangeGraph {
   struct Odometry {
     int from, to;
     Eigen::Vector3d delta;
+    std::optional<Eigen::Vector3d> sigma;
   };
   std::vector<Eigen::Vector3d> poses_;
   std::vector<uwb::Anchor> anchors_;

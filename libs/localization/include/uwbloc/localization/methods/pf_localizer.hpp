@@ -49,7 +49,7 @@ struct PfLocalizerParams {
   double ibas_step = 0.05;             ///< IBAS initial step [m, rad]
   bool ibas_theta = true;              ///< IBAS moves the heading too (else x, y only)
   double min_spread = 0.02;            ///< inject diversity below this swarm spread [m]
-  bool ibas_resample = false;        ///< after the swarm, also resample when ESS/N < ess
+  bool ibas_resample = false;          ///< after the swarm, also resample when ESS/N < ess
   bool landmarks = true;               ///< build and save a corner-landmark map along the run
   double landmark_sigma = 0.05;        ///< std of a corner observation [m]
 

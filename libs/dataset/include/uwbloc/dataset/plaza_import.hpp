@@ -1,0 +1,20 @@
+// Importer for the CMU Plaza range + odometry data (as shipped with GTSAM's examples):
+// Plaza2_DR.txt (t, distance, heading change), Plaza2_TD.txt (t, sender, beacon, range),
+// Plaza2_TL.txt (beacon x y), Plaza2_GT.txt (t x y theta).
+//
+// The odometry's heading convention differs from the reference's by pi (dead reckoning from
+// (x0, y0, pi + theta0) follows it), i.e. the robot moves backwards along the reference heading:
+// the increments are written as (-d cos(dh/2), -d sin(dh/2), dh) so that they compose from the
+// reference's own start pose. Beacons and tag are at height 0 (a planar data set).
+#pragma once
+
+#include <string>
+
+#include "uwbloc/dataset/hanyang_import.hpp"
+
+namespace uwbloc::data {
+
+/// `dir` holds the Plaza2_*.txt files (the run's prefix is found from Plaza?_DR.txt).
+ImportSummary importPlaza(const std::string& dir, const std::string& out_dir);
+
+}  // namespace uwbloc::data
