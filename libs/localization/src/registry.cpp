@@ -43,6 +43,22 @@ Registry makeBuiltin() {
       "Batch smoothing of range + odometry over a Ceres graph (robust loss, optional bias and "
       "anchor self-calibration)",
       {"odometry", "ranges"}));
+  {
+    auto full = makeMethod<GraphSmoother, GraphSmootherParams>(
+        "pf-ibas+graph",
+        "The PF-IBAS paper's full method: PF-IBAS online, then its estimates smoothed over a "
+        "Ceres graph with the ranges and the odometry (front-end parameters: "
+        "front=pf-ibas:k=v;k=v)",
+        {"scans", "odometry", "map", "ranges"});
+    auto make = full.make;
+    full.make = [make](ParamSet& set, const EstimatorContext& ctx) {
+      if (!set.has("front")) set.set("front", "pf-ibas");
+      return make(set, ctx);
+    };
+    for (auto& d : full.defaults)
+      if (d.key == "front") d.value = "pf-ibas";
+    r.add(full);
+  }
   return r;
 }
 

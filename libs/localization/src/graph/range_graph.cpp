@@ -30,6 +30,10 @@ void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Ve
   throw std::invalid_argument("RangeGraph: unknown anchor " + std::to_string(anchor_id));
 }
 
+void RangeGraph::addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma) {
+  priors_.push_back({pose, mean, sigma});
+}
+
 void RangeGraph::build(const RangeGraphParams& params) {
   params_ = params;
   problem_ = std::make_unique<ceres::Problem>();
@@ -56,6 +60,9 @@ void RangeGraph::build(const RangeGraphParams& params) {
     p.AddResidualBlock(RelativePoseCost::Create(o.delta, o.sigma.value_or(params_.odometry_sigma)),
                        nullptr, poses_[static_cast<size_t>(o.from)].data(),
                        poses_[static_cast<size_t>(o.to)].data());
+  for (const auto& pr : priors_)
+    p.AddResidualBlock(PosePriorCost::Create(pr.mean, pr.sigma), nullptr,
+                       poses_[static_cast<size_t>(pr.pose)].data());
   for (size_t i = 0; i < anchors_.size(); ++i) {
     if (params_.estimate_anchors) {
       p.AddResidualBlock(PriorCost<3>::Create(anchor_prior_[i], Eigen::Vector3d::Constant(

@@ -1,49 +1,105 @@
 #include "uwbloc/localization/methods/graph_smoother.hpp"
 
+#include <algorithm>
 #include <cmath>
+
+#include "uwbloc/localization/registry.hpp"
 
 namespace uwbloc::loc {
 
 GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context.anchors),
-      params_(params),
-      dead_reckoning_(context.initial_pose.value_or(Eigen::Vector3d::Zero())) {
+    : UwbEstimator(params.front, context.anchors), params_(params), context_(context) {
   if (!context.initial_pose)
-    throw ParamError("graph-uwb-odom needs a start pose (the dataset's ground truth)");
-  graph_.setAnchors(context.anchors);
+    throw ParamError("graph smoothing needs a start pose (the dataset's ground truth)");
+  if (!params_.front_end.empty()) {
+    // The spec's own ',' separates graph parameters, so front-end parameters use ';'.
+    std::string spec = params_.front_end;
+    std::replace(spec.begin(), spec.end(), ';', ',');
+    front_ = Registry::builtin().create(spec, context);
+  }
 }
 
 std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
-  const double t = eventTime(event);
   if (!started_) {
-    graph_.addPose(dead_reckoning_);
-    times_.push_back(t);
+    first_t_ = eventTime(event);
     started_ = true;
+  }
+  if (front_) {
+    if (auto e = front_->process(event)) front_estimates_.push_back(*e);
   }
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
     if (!odo->delta.allFinite()) {
       countRejection("non_finite_odometry");
       return std::nullopt;
     }
-    dead_reckoning_ = composePose(dead_reckoning_, odo->delta);
-    const int to = graph_.addPose(dead_reckoning_);
-    times_.push_back(odo->t);
-    // Odometry noise grows with the motion.
-    const double dist = odo->delta.head<2>().norm();
-    const double sxy = params_.odom_sigma_xy + params_.odom_sigma_xy_per_m * dist;
-    const double sth =
-        params_.odom_sigma_theta + params_.odom_sigma_theta_per_rad * std::abs(odo->delta.z());
-    graph_.addOdometry(to - 1, to, odo->delta, Eigen::Vector3d(sxy, sxy, sth));
+    odometry_.push_back(*odo);
     return std::nullopt;
   }
-  const auto accepted = acceptRange(event);
-  if (!accepted) return std::nullopt;
-  graph_.addRange(static_cast<int>(graph_.poses()) - 1, accepted->measurement.anchor_id,
-                  accepted->measurement.range, accepted->measurement.tag_on_robot);
+  if (const auto accepted = acceptRange(event)) ranges_.push_back(*accepted);
   return std::nullopt;
 }
 
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
+  if (front_)
+    for (auto& e : front_->finishAll()) front_estimates_.push_back(e);
+  graph::RangeGraph g;
+  g.setAnchors(context_.anchors);
+  std::vector<double> times;
+  // Vertices: the front end's estimates, or one per odometry increment (dead reckoning).
+  auto odometrySigma = [&](const Eigen::Vector3d& d) {
+    const double sxy = params_.odom_sigma_xy + params_.odom_sigma_xy_per_m * d.head<2>().norm();
+    const double sth =
+        params_.odom_sigma_theta + params_.odom_sigma_theta_per_rad * std::abs(d.z());
+    return Eigen::Vector3d(sxy, sxy, sth);
+  };
+  if (front_) {
+    size_t k = 0;
+    for (size_t i = 0; i < front_estimates_.size(); ++i) {
+      const auto& e = front_estimates_[i];
+      const int v = g.addPose(e.pose);
+      times.push_back(e.t);
+      const Eigen::Vector3d sigma(
+          std::max(std::sqrt(std::max(e.covariance(0, 0), 0.0)), params_.prior_min_xy),
+          std::max(std::sqrt(std::max(e.covariance(1, 1), 0.0)), params_.prior_min_xy),
+          std::max(std::sqrt(std::max(e.covariance(2, 2), 0.0)), params_.prior_min_theta));
+      g.addPosePrior(v, e.pose, sigma);
+      // The odometry between the previous vertex and this one.
+      Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+      bool moved = false;
+      while (k < odometry_.size() && odometry_[k].t <= e.t) {
+        if (i > 0 && odometry_[k].t > times[i - 1]) {
+          delta = composePose(delta, odometry_[k].delta);
+          moved = true;
+        }
+        ++k;
+      }
+      if (i > 0 && moved) g.addOdometry(v - 1, v, delta, odometrySigma(delta));
+    }
+  } else {
+    Eigen::Vector3d pose = *context_.initial_pose;
+    g.addPose(pose);
+    times.push_back(first_t_);
+    for (const auto& o : odometry_) {
+      pose = composePose(pose, o.delta);
+      const int v = g.addPose(pose);
+      times.push_back(o.t);
+      g.addOdometry(v - 1, v, o.delta, odometrySigma(o.delta));
+    }
+  }
+  if (times.empty()) return {};
+  // Each range constrains the vertex nearest to it in time.
+  for (const auto& r : ranges_) {
+    const auto it = std::lower_bound(times.begin(), times.end(), r.measurement.t);
+    size_t i = static_cast<size_t>(it - times.begin());
+    if (i == times.size() || (i > 0 && r.measurement.t - times[i - 1] < times[i] - r.measurement.t))
+      --i;
+    if (std::abs(times[i] - r.measurement.t) > 1.0) {
+      countRejection("range_far_from_any_pose", r.measurement.anchor_id);
+      continue;
+    }
+    g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range,
+               r.measurement.tag_on_robot);
+  }
   graph::RangeGraphParams p;
   p.range_sigma = params_.front.sigma;
   p.loss = params_.loss;
@@ -52,15 +108,14 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   p.estimate_anchors = params_.estimate_anchors;
   p.anchor_prior_sigma = params_.anchor_prior;
   p.max_iterations = params_.iterations;
-  graph_.build(p);
-  const auto solution = graph_.solve();
-  if (!solution.usable) countRejection("graph_not_usable");
+  g.build(p);
+  if (!g.solve().usable) countRejection("graph_not_usable");
   std::vector<PoseEstimate> out;
-  out.reserve(graph_.poses());
-  for (size_t i = 0; i < graph_.poses(); ++i) {
+  out.reserve(g.poses());
+  for (size_t i = 0; i < g.poses(); ++i) {
     PoseEstimate e;
-    e.t = times_[i];
-    e.pose = graph_.pose(i);
+    e.t = times[i];
+    e.pose = g.pose(i);
     out.push_back(e);
   }
   return out;

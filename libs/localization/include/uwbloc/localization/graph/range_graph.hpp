@@ -101,6 +101,24 @@ struct PriorCost {
   const Eigen::Matrix<double, N, 1> x0_, inv_sigma_;
 };
 
+/// A prior on a pose, with the heading error wrapped.
+struct PosePriorCost {
+  PosePriorCost(const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma)
+      : mean_(mean), inv_sigma_(sigma.cwiseInverse()) {}
+  template <typename T>
+  bool operator()(const T* x, T* residual) const {
+    residual[0] = (x[0] - T(mean_.x())) * inv_sigma_.x();
+    residual[1] = (x[1] - T(mean_.y())) * inv_sigma_.y();
+    const T d = x[2] - T(mean_.z());
+    residual[2] = ceres::atan2(ceres::sin(d), ceres::cos(d)) * inv_sigma_.z();
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma) {
+    return new ceres::AutoDiffCostFunction<PosePriorCost, 3, 3>(new PosePriorCost(mean, sigma));
+  }
+  const Eigen::Vector3d mean_, inv_sigma_;
+};
+
 struct RangeGraphParams {
   double range_sigma = 0.1;     ///< std of a range [m]
   std::string loss = "cauchy";  ///< none, huber or cauchy (on whitened range residuals)
@@ -129,6 +147,8 @@ class RangeGraph {
   void addOdometry(int from, int to, const Eigen::Vector3d& delta,
                    const std::optional<Eigen::Vector3d>& sigma = std::nullopt);
   void addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag);
+  /// A prior on a pose (e.g. the front-end filter's estimate), std per component.
+  void addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma);
 
   /// Creates the Ceres problem. Gauge: with fixed anchors the frame is fixed by them; when
   /// anchors are estimated, the first anchor and the first pose are held constant (see build()).
@@ -157,6 +177,11 @@ class RangeGraph {
   std::vector<double> biases_;
   std::vector<Range> ranges_;
   std::vector<Odometry> odometry_;
+  struct Prior {
+    int pose;
+    Eigen::Vector3d mean, sigma;
+  };
+  std::vector<Prior> priors_;
   RangeGraphParams params_;
   std::unique_ptr<ceres::Problem> problem_;
 };

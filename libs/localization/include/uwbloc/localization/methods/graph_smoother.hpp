@@ -1,8 +1,13 @@
-// graph-uwb-odom: batch smoothing of a whole run over a Ceres range + odometry graph. One pose
-// vertex per odometry increment (initialised by dead reckoning from the start pose), each range
-// attached to the latest pose, anchors fixed or self-calibrated, optional per-anchor range bias,
-// robust loss for NLOS. The trajectory is produced at the end of the stream.
+// Batch smoothing of a whole run over a Ceres range + odometry graph, produced at the end of the
+// stream. Anchors fixed or self-calibrated, optional per-anchor range bias, robust loss for NLOS.
+//  - graph-uwb-odom: one pose vertex per odometry increment, initialised by dead reckoning from
+//    the start pose; each range attached to the vertex nearest in time.
+//  - pf-ibas+graph (the PF-IBAS paper's full method, §2.2): the front-end filter runs online;
+//    each of its estimates becomes a pose vertex with a prior (its mean and covariance), linked
+//    to the previous one by the odometry between them; the ranges constrain the vertices.
 #pragma once
+
+#include <memory>
 
 #include "uwbloc/localization/graph/range_graph.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
@@ -21,6 +26,9 @@ struct GraphSmootherParams {
   bool estimate_anchors = false;           ///< anchors' x, y with a prior
   double anchor_prior = 0.5;               ///< [m]
   int iterations = 100;
+  std::string front_end;          ///< "" or a method spec whose estimates become vertices
+  double prior_min_xy = 0.02;     ///< floor on a front-end prior's std [m]
+  double prior_min_theta = 0.01;  ///< floor on a front-end prior's heading std [rad]
 
   template <class V>
   void visit(V&& v) {
@@ -35,6 +43,9 @@ struct GraphSmootherParams {
     v("anchors", estimate_anchors, "self-calibrate the anchors (x, y)");
     v("anchor_prior", anchor_prior, "anchor prior std [m]");
     v("iterations", iterations, "solver iterations");
+    v("front", front_end, "front-end method whose estimates become the vertices (empty: odometry)");
+    v("prior_min_xy", prior_min_xy, "floor on a front-end prior's std [m]");
+    v("prior_min_theta", prior_min_theta, "floor on a front-end prior's heading std [rad]");
   }
 };
 
@@ -47,10 +58,17 @@ class GraphSmoother : public UwbEstimator {
   std::vector<PoseEstimate> doFinishAll() override;
 
  private:
+  struct TimedRange {
+    AcceptedRange r;
+  };
   GraphSmootherParams params_;
-  graph::RangeGraph graph_;
-  std::vector<double> times_;
-  Eigen::Vector3d dead_reckoning_;
+  EstimatorContext context_;
+  std::unique_ptr<Estimator> front_;
+  // Collected along the run; the graph is built at the end.
+  std::vector<OdometryIncrement> odometry_;
+  std::vector<AcceptedRange> ranges_;
+  std::vector<PoseEstimate> front_estimates_;
+  double first_t_ = 0.0;
   bool started_ = false;
 };
 
