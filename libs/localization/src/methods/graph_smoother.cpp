@@ -19,27 +19,105 @@ GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorC
   }
 }
 
+graph::RangeGraphParams GraphSmoother::graphParams() const {
+  graph::RangeGraphParams p;
+  p.range_sigma = params_.front.sigma;
+  p.loss = params_.loss;
+  p.loss_scale = params_.loss_scale;
+  p.estimate_bias = params_.estimate_bias;
+  p.estimate_anchors = params_.estimate_anchors;
+  p.anchor_prior_sigma = params_.anchor_prior;
+  p.max_iterations = params_.iterations;
+  return p;
+}
+
+Eigen::Vector3d GraphSmoother::priorSigma(const PoseEstimate& e) const {
+  return {std::max(std::sqrt(std::max(e.covariance(0, 0), 0.0)), params_.prior_min_xy),
+          std::max(std::sqrt(std::max(e.covariance(1, 1), 0.0)), params_.prior_min_xy),
+          std::max(std::sqrt(std::max(e.covariance(2, 2), 0.0)), params_.prior_min_theta)};
+}
+
+std::optional<PoseEstimate> GraphSmoother::solveWindow() {
+  graph::RangeGraph g;
+  g.setAnchors(context_.anchors);
+  for (size_t i = 0; i < window_.size(); ++i) {
+    const auto& w = window_[i];
+    const int v = g.addPose(w.pose);
+    g.addPosePrior(v, w.front.pose, priorSigma(w.front));
+    if (i > 0) {
+      const Eigen::Vector3d& d = w.odometry_before;
+      const double sxy = params_.odom_sigma_xy + params_.odom_sigma_xy_per_m * d.head<2>().norm();
+      const double sth =
+          params_.odom_sigma_theta + params_.odom_sigma_theta_per_rad * std::abs(d.z());
+      g.addOdometry(v - 1, v, d, Eigen::Vector3d(sxy, sxy, sth));
+    }
+    for (const auto& r : w.ranges)
+      g.addRange(v, r.measurement.anchor_id, r.measurement.range, r.measurement.tag_on_robot);
+  }
+  graph::RangeGraphParams p = graphParams();
+  p.max_iterations = std::min(p.max_iterations, 20);
+  g.build(p);
+  if (window_.size() > 1) g.holdPose(0);  // the window's oldest vertex anchors it
+  if (!g.solve().usable) {
+    countRejection("graph_not_usable");
+    return window_.back().front;
+  }
+  for (size_t i = 0; i < window_.size(); ++i) window_[i].pose = g.pose(i);
+  PoseEstimate out = window_.back().front;
+  out.pose = window_.back().pose;
+  return out;
+}
+
 std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
   if (!started_) {
     first_t_ = eventTime(event);
     started_ = true;
   }
+  std::optional<PoseEstimate> out;
+  std::optional<PoseEstimate> front_estimate;
   if (front_) {
-    if (auto e = front_->process(event)) front_estimates_.push_back(*e);
+    if (auto e = front_->process(event)) {
+      front_estimates_.push_back(*e);
+      front_estimate = e;
+    }
+  }
+  if (front_estimate && params_.window > 0) {
+    // A new vertex: the front end's estimate, the odometry and ranges since the last one.
+    window_.push_back(
+        {*front_estimate, front_estimate->pose, odometry_since_vertex_, ranges_since_vertex_});
+    odometry_since_vertex_.setZero();
+    ranges_since_vertex_.clear();
+    if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
+    out = solveWindow();
   }
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
     if (!odo->delta.allFinite()) {
       countRejection("non_finite_odometry");
-      return std::nullopt;
+      return out;
     }
     odometry_.push_back(*odo);
-    return std::nullopt;
+    odometry_since_vertex_ = composePose(odometry_since_vertex_, odo->delta);
+    return out;
   }
-  if (const auto accepted = acceptRange(event)) ranges_.push_back(*accepted);
-  return std::nullopt;
+  if (const auto accepted = acceptRange(event)) {
+    ranges_.push_back(*accepted);
+    ranges_since_vertex_.push_back(*accepted);
+  }
+  return out;
 }
 
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
+  if (front_ && params_.window > 0) {
+    std::vector<PoseEstimate> out;
+    for (auto& e : front_->finishAll()) {
+      window_.push_back({e, e.pose, odometry_since_vertex_, ranges_since_vertex_});
+      odometry_since_vertex_.setZero();
+      ranges_since_vertex_.clear();
+      if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
+      if (auto w = solveWindow()) out.push_back(*w);
+    }
+    return out;
+  }
   if (front_)
     for (auto& e : front_->finishAll()) front_estimates_.push_back(e);
   graph::RangeGraph g;
@@ -100,15 +178,7 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
     g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range,
                r.measurement.tag_on_robot);
   }
-  graph::RangeGraphParams p;
-  p.range_sigma = params_.front.sigma;
-  p.loss = params_.loss;
-  p.loss_scale = params_.loss_scale;
-  p.estimate_bias = params_.estimate_bias;
-  p.estimate_anchors = params_.estimate_anchors;
-  p.anchor_prior_sigma = params_.anchor_prior;
-  p.max_iterations = params_.iterations;
-  g.build(p);
+  g.build(graphParams());
   if (!g.solve().usable) countRejection("graph_not_usable");
   std::vector<PoseEstimate> out;
   out.reserve(g.poses());

@@ -154,6 +154,10 @@ class RangeGraph {
   /// anchors are estimated, the first anchor and the first pose are held constant (see build()).
   void build(const RangeGraphParams& params);
   GraphSolution solve();
+  /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
+  void holdPose(int pose) {
+    problem_->SetParameterBlockConstant(poses_[static_cast<size_t>(pose)].data());
+  }
 
   size_t poses() const { return poses_.size(); }
   Eigen::Vector3d pose(size_t i) const { return poses_[i]; }

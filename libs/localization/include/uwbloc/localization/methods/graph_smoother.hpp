@@ -27,6 +27,7 @@ struct GraphSmootherParams {
   double anchor_prior = 0.5;               ///< [m]
   int iterations = 100;
   std::string front_end;          ///< "" or a method spec whose estimates become vertices
+  int window = 0;                 ///< 0: batch; N: fixed-lag window of N front-end vertices
   double prior_min_xy = 0.02;     ///< floor on a front-end prior's std [m]
   double prior_min_theta = 0.01;  ///< floor on a front-end prior's heading std [rad]
 
@@ -44,6 +45,7 @@ struct GraphSmootherParams {
     v("anchor_prior", anchor_prior, "anchor prior std [m]");
     v("iterations", iterations, "solver iterations");
     v("front", front_end, "front-end method whose estimates become the vertices (empty: odometry)");
+    v("window", window, "0: batch over the whole run; N: online fixed-lag window of N vertices");
     v("prior_min_xy", prior_min_xy, "floor on a front-end prior's std [m]");
     v("prior_min_theta", prior_min_theta, "floor on a front-end prior's heading std [rad]");
   }
@@ -68,6 +70,19 @@ class GraphSmoother : public UwbEstimator {
   std::vector<OdometryIncrement> odometry_;
   std::vector<AcceptedRange> ranges_;
   std::vector<PoseEstimate> front_estimates_;
+  // Sliding window state.
+  struct WindowVertex {
+    PoseEstimate front;
+    Eigen::Vector3d pose;             ///< latest solution
+    Eigen::Vector3d odometry_before;  ///< increment from the previous vertex
+    std::vector<AcceptedRange> ranges;
+  };
+  std::vector<WindowVertex> window_;
+  Eigen::Vector3d odometry_since_vertex_ = Eigen::Vector3d::Zero();
+  std::vector<AcceptedRange> ranges_since_vertex_;
+  std::optional<PoseEstimate> solveWindow();
+  graph::RangeGraphParams graphParams() const;
+  Eigen::Vector3d priorSigma(const PoseEstimate& e) const;
   double first_t_ = 0.0;
   bool started_ = false;
 };
