@@ -6,3 +6,4 @@ UWBLOC_WITH_MRPT_APPS=1 bash scripts/install-deps.sh  # MRPT pf-localization, th
 bash scripts/build.sh -DBUILD_BENCHMARKS=ON
 ./build/bench/bench_methods "$@"
 ./build/bench/bench_vs_mrpt 10 300
+./build/bench/bench_graph
