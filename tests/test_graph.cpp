@@ -100,6 +100,14 @@ TEST(GraphCosts, JacobiansMatchNumeric) {
       RelativePoseCost::Create({0.3, 0.1, 0.2}, {0.05, 0.05, 0.02}));
   std::vector<const ceres::Manifold*> m2{&pose_manifold, &pose_manifold};
   checkGradients(rel.get(), {pose, pose2}, &m2, "relative pose across +-pi");
+  double landmark[2] = {3.0, -2.0};
+  std::unique_ptr<ceres::CostFunction> lm(LandmarkCost::Create({1.5, -0.5}, 0.05));
+  std::vector<const ceres::Manifold*> m3{&pose_manifold, nullptr};
+  checkGradients(lm.get(), {pose, landmark}, &m3, "landmark (eq. 5)");
+  std::unique_ptr<ceres::CostFunction> pp(
+      PosePriorCost::Create({1.0, -0.5, -3.1}, {0.1, 0.1, 0.05}));
+  std::vector<const ceres::Manifold*> m4{&pose_manifold};
+  checkGradients(pp.get(), {pose}, &m4, "pose prior across +-pi");
   std::unique_ptr<ceres::CostFunction> prior(PriorCost<3>::Create({4, 2, 2}, {0.5, 0.5, 0.5}));
   checkGradients(prior.get(), {anchor}, nullptr, "prior");
   // Hand-computed range residual: pose at the origin facing +x, tag 0.16 ahead, anchor 3 m
@@ -123,6 +131,43 @@ TEST(RangeSlam, RecoversPosesWithFixedAnchors) {
               s.poseRmse(s.graph(s.anchors)), s.poseRmse(g), sol.report.c_str());
   EXPECT_TRUE(sol.usable);
   EXPECT_LT(s.poseRmse(g), 0.05);
+  // Marginal covariance of a pose: positive definite, about the size of the errors.
+  const auto cov = g.poseCovariance(100);
+  ASSERT_TRUE(cov.has_value());
+  EXPECT_GT(cov->diagonal().minCoeff(), 0.0);
+  EXPECT_LT(std::sqrt(cov->trace()), 0.2);
+  std::printf("[ GRAPH    ] pose 100 std (x, y, theta): %.4f %.4f %.4f\n", std::sqrt((*cov)(0, 0)),
+              std::sqrt((*cov)(1, 1)), std::sqrt((*cov)(2, 2)));
+}
+
+TEST(RangeSlam, LandmarkObservationsCloseTheLoop) {
+  // Odometry only, plus one landmark seen from the first and the last pose of a loop.
+  const Synthetic s(11, 0.0);
+  RangeGraph g;
+  g.setAnchors({});
+  for (const auto& p : s.dead_reckoning) g.addPose(p);
+  for (size_t k = 0; k + 1 < s.truth.size(); ++k)
+    g.addOdometry(static_cast<int>(k), static_cast<int>(k + 1), s.increments[k],
+                  Eigen::Vector3d(0.02, 0.02, 0.005));
+  const Eigen::Vector2d mark(12.0, 9.0);
+  const int l = g.addLandmark(mark + Eigen::Vector2d(0.5, -0.5));
+  for (size_t k : {size_t{0}, size_t{1}, s.truth.size() - 2, s.truth.size() - 1}) {
+    const Eigen::Vector3d& p = s.truth[k];
+    const double c = std::cos(p.z()), sn = std::sin(p.z());
+    const Eigen::Vector2d d = mark - p.head<2>();
+    g.addLandmarkObservation(static_cast<int>(k), l,
+                             {c * d.x() + sn * d.y(), -sn * d.x() + c * d.y()}, 0.02);
+  }
+  g.build({});
+  g.holdPose(0);
+  EXPECT_TRUE(g.solve().usable);
+  const double end_before = (s.dead_reckoning.back().head<2>() - s.truth.back().head<2>()).norm();
+  const double end_after = (g.pose(s.truth.size() - 1).head<2>() - s.truth.back().head<2>()).norm();
+  std::printf(
+      "[ GRAPH    ] landmark loop closure: end error %.3f m -> %.3f m, landmark error %.3f m\n",
+      end_before, end_after, (g.landmark(0) - mark).norm());
+  EXPECT_LT(end_after, end_before);
+  EXPECT_LT((g.landmark(0) - mark).norm(), 0.1);
 }
 
 TEST(RangeSlam, SelfCalibratesAnchors) {

@@ -34,6 +34,29 @@ void RangeGraph::addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen
   priors_.push_back({pose, mean, sigma});
 }
 
+int RangeGraph::addLandmark(const Eigen::Vector2d& initial) {
+  landmarks_.push_back(initial);
+  return static_cast<int>(landmarks_.size()) - 1;
+}
+
+void RangeGraph::addLandmarkObservation(int pose, int landmark, const Eigen::Vector2d& z,
+                                        double sigma) {
+  landmark_obs_.push_back({pose, landmark, z, sigma});
+}
+
+std::optional<Eigen::Matrix3d> RangeGraph::poseCovariance(int pose) {
+  if (!problem_) return std::nullopt;
+  double* block = poses_[static_cast<size_t>(pose)].data();
+  if (problem_->IsParameterBlockConstant(block)) return Eigen::Matrix3d::Zero();
+  ceres::Covariance::Options options;
+  ceres::Covariance covariance(options);
+  const std::vector<std::pair<const double*, const double*>> blocks{{block, block}};
+  if (!covariance.Compute(blocks, problem_.get())) return std::nullopt;
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+  if (!covariance.GetCovarianceBlockInTangentSpace(block, block, c.data())) return std::nullopt;
+  return Eigen::Matrix3d(c);
+}
+
 void RangeGraph::build(const RangeGraphParams& params) {
   params_ = params;
   problem_ = std::make_unique<ceres::Problem>();
@@ -60,6 +83,11 @@ void RangeGraph::build(const RangeGraphParams& params) {
     p.AddResidualBlock(RelativePoseCost::Create(o.delta, o.sigma.value_or(params_.odometry_sigma)),
                        nullptr, poses_[static_cast<size_t>(o.from)].data(),
                        poses_[static_cast<size_t>(o.to)].data());
+  for (auto& l : landmarks_) p.AddParameterBlock(l.data(), 2);
+  for (const auto& o : landmark_obs_)
+    p.AddResidualBlock(LandmarkCost::Create(o.z, o.sigma), nullptr,
+                       poses_[static_cast<size_t>(o.pose)].data(),
+                       landmarks_[static_cast<size_t>(o.landmark)].data());
   for (const auto& pr : priors_)
     p.AddResidualBlock(PosePriorCost::Create(pr.mean, pr.sigma), nullptr,
                        poses_[static_cast<size_t>(pr.pose)].data());

@@ -119,6 +119,25 @@ struct PosePriorCost {
   const Eigen::Vector3d mean_, inv_sigma_;
 };
 
+/// LiDAR landmark observation, the PF-IBAS paper's eq. (5): the landmark m seen from pose x is
+/// z = R(theta)^T (m - t); residual (z_meas - z) / sigma. Parameters: pose[3], landmark[2].
+struct LandmarkCost {
+  LandmarkCost(const Eigen::Vector2d& z, double sigma) : z_(z), inv_sigma_(1.0 / sigma) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* landmark, T* residual) const {
+    const T c = ceres::cos(pose[2]), s = ceres::sin(pose[2]);
+    const T dx = landmark[0] - pose[0], dy = landmark[1] - pose[1];
+    residual[0] = (T(z_.x()) - (c * dx + s * dy)) * inv_sigma_;
+    residual[1] = (T(z_.y()) - (-s * dx + c * dy)) * inv_sigma_;
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Vector2d& z, double sigma) {
+    return new ceres::AutoDiffCostFunction<LandmarkCost, 2, 3, 2>(new LandmarkCost(z, sigma));
+  }
+  const Eigen::Vector2d z_;  ///< observed landmark in the robot frame [m]
+  const double inv_sigma_;   ///< whitening
+};
+
 struct RangeGraphParams {
   double range_sigma = 0.1;     ///< std of a range [m]
   std::string loss = "cauchy";  ///< none, huber or cauchy (on whitened range residuals)
@@ -147,6 +166,12 @@ class RangeGraph {
   void addOdometry(int from, int to, const Eigen::Vector3d& delta,
                    const std::optional<Eigen::Vector3d>& sigma = std::nullopt);
   void addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag);
+  /// A landmark vertex (x, y), and an observation of it from a pose (robot frame, std sigma).
+  int addLandmark(const Eigen::Vector2d& initial);
+  void addLandmarkObservation(int pose, int landmark, const Eigen::Vector2d& z, double sigma);
+  Eigen::Vector2d landmark(size_t i) const { return landmarks_[i]; }
+  /// Marginal covariance of a pose after solve() (ceres::Covariance); nothing if it fails.
+  std::optional<Eigen::Matrix3d> poseCovariance(int pose);
   /// A prior on a pose (e.g. the front-end filter's estimate), std per component.
   void addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma);
 
@@ -186,6 +211,13 @@ class RangeGraph {
     Eigen::Vector3d mean, sigma;
   };
   std::vector<Prior> priors_;
+  std::vector<Eigen::Vector2d> landmarks_;
+  struct LandmarkObs {
+    int pose, landmark;
+    Eigen::Vector2d z;
+    double sigma;
+  };
+  std::vector<LandmarkObs> landmark_obs_;
   RangeGraphParams params_;
   std::unique_ptr<ceres::Problem> problem_;
 };
