@@ -33,6 +33,9 @@ const bool registered = [] {
   for (const auto& name : uwbloc::loc::Registry::builtin().names())
     benchmark::RegisterBenchmark(("mrpt_demo/" + name).c_str(), replay, name)
         ->Unit(benchmark::kMillisecond);
+  // The graph back end online: a fixed-lag window of 10 vertices.
+  benchmark::RegisterBenchmark("mrpt_demo/pf-ibas+graph:window=10", replay, std::string("pf-ibas+graph:window=10"))
+      ->Unit(benchmark::kMillisecond);
   return true;
 }();
 

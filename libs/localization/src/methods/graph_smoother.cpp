@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/registry.hpp"
 
 namespace uwbloc::loc {
@@ -90,6 +91,13 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
     if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
     out = solveWindow();
   }
+  if (const auto* scan = std::get_if<LaserScan>(&event)) {
+    if (front_ && params_.landmarks && params_.window == 0) {
+      const LandmarkExtractionParams ex;
+      corners_.push_back({scan->t, extractCorners(extractLines(*scan, ex), ex)});
+    }
+    return out;
+  }
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
     if (!odo->delta.allFinite()) {
       countRejection("non_finite_odometry");
@@ -165,6 +173,34 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
     }
   }
   if (times.empty()) return {};
+  // LiDAR corners: associated from the front end's poses, then landmark vertices and edges.
+  if (front_ && !corners_.empty()) {
+    LandmarkMap map;
+    const Eigen::Matrix2d r =
+        Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
+    struct Obs {
+      int vertex, landmark;
+      Eigen::Vector2d z;
+    };
+    std::vector<Obs> obs;
+    size_t v = 0;
+    for (const auto& sc : corners_) {
+      while (v + 1 < times.size() && times[v] < sc.t - 1e-9) ++v;
+      if (std::abs(times[v] - sc.t) > 1e-6) continue;  // a scan without a front-end estimate
+      const auto& e = front_estimates_[v];
+      for (const auto& c : sc.corners)
+        obs.push_back({static_cast<int>(v), map.integrate(e.pose, e.covariance, c, r), c});
+    }
+    std::vector<int> vertex_of(map.landmarks().size(), -1);
+    for (const auto& o : obs) {
+      const auto& lm = map.landmarks()[static_cast<size_t>(o.landmark)];
+      if (lm.observations < params_.landmark_min_obs) continue;
+      if (vertex_of[static_cast<size_t>(o.landmark)] < 0)
+        vertex_of[static_cast<size_t>(o.landmark)] = g.addLandmark(lm.position);
+      g.addLandmarkObservation(o.vertex, vertex_of[static_cast<size_t>(o.landmark)], o.z,
+                               params_.landmark_sigma);
+    }
+  }
   // Each range constrains the vertex nearest to it in time.
   for (const auto& r : ranges_) {
     const auto it = std::lower_bound(times.begin(), times.end(), r.measurement.t);

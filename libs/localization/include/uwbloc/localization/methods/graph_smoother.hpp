@@ -4,12 +4,15 @@
 //    the start pose; each range attached to the vertex nearest in time.
 //  - pf-ibas+graph (the PF-IBAS paper's full method, §2.2): the front-end filter runs online;
 //    each of its estimates becomes a pose vertex with a prior (its mean and covariance), linked
-//    to the previous one by the odometry between them; the ranges constrain the vertices.
+//    to the previous one by the odometry between them; the ranges constrain the vertices, and so
+//    do LiDAR corner landmarks (extracted from each scan, associated by nearest neighbour with a
+//    Mahalanobis gate from the front end's poses, kept when seen `landmark_min_obs` times).
 #pragma once
 
 #include <memory>
 
 #include "uwbloc/localization/graph/range_graph.hpp"
+#include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
 
 namespace uwbloc::loc {
@@ -27,6 +30,9 @@ struct GraphSmootherParams {
   double anchor_prior = 0.5;               ///< [m]
   int iterations = 100;
   std::string front_end;          ///< "" or a method spec whose estimates become vertices
+  bool landmarks = true;          ///< front-end mode: LiDAR corner landmarks as vertices
+  double landmark_sigma = 0.05;   ///< std of a corner observation [m]
+  int landmark_min_obs = 3;       ///< landmarks seen fewer times are left out
   int window = 0;                 ///< 0: batch; N: fixed-lag window of N front-end vertices
   double prior_min_xy = 0.02;     ///< floor on a front-end prior's std [m]
   double prior_min_theta = 0.01;  ///< floor on a front-end prior's heading std [rad]
@@ -45,6 +51,9 @@ struct GraphSmootherParams {
     v("anchor_prior", anchor_prior, "anchor prior std [m]");
     v("iterations", iterations, "solver iterations");
     v("front", front_end, "front-end method whose estimates become the vertices (empty: odometry)");
+    v("landmarks", landmarks, "front-end mode: LiDAR corner landmarks as vertices");
+    v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
+    v("landmark_min_obs", landmark_min_obs, "leave out landmarks seen fewer times");
     v("window", window, "0: batch over the whole run; N: online fixed-lag window of N vertices");
     v("prior_min_xy", prior_min_xy, "floor on a front-end prior's std [m]");
     v("prior_min_theta", prior_min_theta, "floor on a front-end prior's heading std [rad]");
@@ -70,6 +79,11 @@ class GraphSmoother : public UwbEstimator {
   std::vector<OdometryIncrement> odometry_;
   std::vector<AcceptedRange> ranges_;
   std::vector<PoseEstimate> front_estimates_;
+  struct ScanCorners {
+    double t;
+    std::vector<Eigen::Vector2d> corners;  ///< robot frame
+  };
+  std::vector<ScanCorners> corners_;
   // Sliding window state.
   struct WindowVertex {
     PoseEstimate front;
