@@ -117,3 +117,21 @@ TEST(MrptDemo, PfIbasAgainstTheBaselines) {
     spread_written |= name == "swarm_spread.csv" && contents.size() > 100;
   EXPECT_TRUE(spread_written);
 }
+
+TEST(MrptDemo, GraphLowersPfIbas) {
+  // The paper's Table 4: PF-IBAS without and with the graph, batch and sliding window.
+  const auto ds =
+      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
+  const auto pf = eval::evaluateMethod(ds, "pf-ibas", 10, 1);
+  const auto batch = eval::evaluateMethod(ds, "pf-ibas+graph", 10, 1);
+  const auto window = eval::evaluateMethod(ds, "pf-ibas+graph:window=10", 10, 1);
+  const auto icp = eval::evaluateMethod(ds, "pf-ibas+graph:icp=1", 3, 1);
+  std::printf(
+      "[ TABLE4   ] pf-ibas %.4f, +graph batch %.4f, +graph window=10 (lagged) %.4f, "
+      "+graph with ICP edges %.4f m\n",
+      pf.metrics.rmse_2d, batch.metrics.rmse_2d, window.metrics.rmse_2d, icp.metrics.rmse_2d);
+  EXPECT_LT(batch.metrics.rmse_2d, pf.metrics.rmse_2d);
+  EXPECT_LT(window.metrics.rmse_2d, pf.metrics.rmse_2d);
+  EXPECT_LT(icp.metrics.rmse_2d, pf.metrics.rmse_2d);
+  EXPECT_GT(window.metrics.coverage, 0.99);
+}

@@ -17,6 +17,7 @@ GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorC
     std::string spec = params_.front_end;
     std::replace(spec.begin(), spec.end(), ';', ',');
     front_ = Registry::builtin().create(spec, context);
+    if (params_.icp) icp_ = Registry::builtin().create("lidar-icp", context);
   }
 }
 
@@ -61,11 +62,21 @@ std::optional<PoseEstimate> GraphSmoother::solveWindow() {
   if (window_.size() > 1) g.holdPose(0);  // the window's oldest vertex anchors it
   if (!g.solve().usable) {
     countRejection("graph_not_usable");
-    return window_.back().front;
+    return std::nullopt;
   }
   for (size_t i = 0; i < window_.size(); ++i) window_[i].pose = g.pose(i);
-  PoseEstimate out = window_.back().front;
-  out.pose = window_.back().pose;
+  // The newest pose at once, or (fixed lag) the second-oldest once the window is full: the
+  // oldest is held, so this is the last solve that can change it.
+  size_t k = window_.size() - 1;
+  if (params_.lagged) {
+    if (window_.size() < static_cast<size_t>(params_.window) || window_.size() < 2)
+      return std::nullopt;
+    k = 1;
+  }
+  if (window_[k].front.t <= last_output_t_) return std::nullopt;
+  PoseEstimate out = window_[k].front;
+  out.pose = window_[k].pose;
+  last_output_t_ = out.t;
   return out;
 }
 
@@ -76,6 +87,9 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
   }
   std::optional<PoseEstimate> out;
   std::optional<PoseEstimate> front_estimate;
+  if (icp_) {
+    if (auto e = icp_->process(event)) icp_poses_.push_back(*e);
+  }
   if (front_) {
     if (auto e = front_->process(event)) {
       front_estimates_.push_back(*e);
@@ -124,6 +138,14 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
       if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
       if (auto w = solveWindow()) out.push_back(*w);
     }
+    // The poses still inside the last window.
+    for (const auto& w : window_)
+      if (w.front.t > last_output_t_) {
+        PoseEstimate e = w.front;
+        e.pose = w.pose;
+        out.push_back(e);
+        last_output_t_ = e.t;
+      }
     return out;
   }
   if (front_)
@@ -173,6 +195,22 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
     }
   }
   if (times.empty()) return {};
+  // Scan matching between consecutive vertices (where both have an ICP pose at their time).
+  if (icp_ && front_) {
+    auto icpAt = [&](double t) -> const PoseEstimate* {
+      auto it = std::lower_bound(icp_poses_.begin(), icp_poses_.end(), t,
+                                 [](const PoseEstimate& p, double v) { return p.t < v - 1e-9; });
+      return it != icp_poses_.end() && std::abs(it->t - t) < 1e-6 ? &*it : nullptr;
+    };
+    for (size_t i = 1; i < times.size(); ++i) {
+      const auto* a = icpAt(times[i - 1]);
+      const auto* b = icpAt(times[i]);
+      if (a && b)
+        g.addOdometry(
+            static_cast<int>(i - 1), static_cast<int>(i), relativePose(a->pose, b->pose),
+            Eigen::Vector3d(params_.icp_sigma_xy, params_.icp_sigma_xy, params_.icp_sigma_theta));
+    }
+  }
   // LiDAR corners: associated from the front end's poses, then landmark vertices and edges.
   if (front_ && !corners_.empty()) {
     LandmarkMap map;

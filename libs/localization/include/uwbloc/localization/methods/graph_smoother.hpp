@@ -33,6 +33,10 @@ struct GraphSmootherParams {
   bool landmarks = true;          ///< front-end mode: LiDAR corner landmarks as vertices
   double landmark_sigma = 0.05;   ///< std of a corner observation [m]
   int landmark_min_obs = 3;       ///< landmarks seen fewer times are left out
+  bool icp = false;               ///< front-end mode: add ICP relative-pose edges (lidar-icp)
+  double icp_sigma_xy = 0.03;     ///< ICP edge std [m]
+  double icp_sigma_theta = 0.01;  ///< ICP edge std [rad]
+  bool lagged = true;             ///< window mode: report each vertex once N-2 later ones are in
   int window = 0;                 ///< 0: batch; N: fixed-lag window of N front-end vertices
   double prior_min_xy = 0.02;     ///< floor on a front-end prior's std [m]
   double prior_min_theta = 0.01;  ///< floor on a front-end prior's heading std [rad]
@@ -54,6 +58,11 @@ struct GraphSmootherParams {
     v("landmarks", landmarks, "front-end mode: LiDAR corner landmarks as vertices");
     v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
     v("landmark_min_obs", landmark_min_obs, "leave out landmarks seen fewer times");
+    v("icp", icp, "front-end mode: add relative-pose edges from scan matching (lidar-icp)");
+    v("icp_xy", icp_sigma_xy, "ICP edge std [m]");
+    v("icp_th", icp_sigma_theta, "ICP edge std [rad]");
+    v("lagged", lagged,
+      "window mode: output each pose with a lag of N-2 vertices (else the newest)");
     v("window", window, "0: batch over the whole run; N: online fixed-lag window of N vertices");
     v("prior_min_xy", prior_min_xy, "floor on a front-end prior's std [m]");
     v("prior_min_theta", prior_min_theta, "floor on a front-end prior's heading std [rad]");
@@ -75,6 +84,8 @@ class GraphSmoother : public UwbEstimator {
   GraphSmootherParams params_;
   EstimatorContext context_;
   std::unique_ptr<Estimator> front_;
+  std::unique_ptr<Estimator> icp_;
+  std::vector<PoseEstimate> icp_poses_;
   // Collected along the run; the graph is built at the end.
   std::vector<OdometryIncrement> odometry_;
   std::vector<AcceptedRange> ranges_;
@@ -92,6 +103,7 @@ class GraphSmoother : public UwbEstimator {
     std::vector<AcceptedRange> ranges;
   };
   std::vector<WindowVertex> window_;
+  double last_output_t_ = -1e300;
   Eigen::Vector3d odometry_since_vertex_ = Eigen::Vector3d::Zero();
   std::vector<AcceptedRange> ranges_since_vertex_;
   std::optional<PoseEstimate> solveWindow();
