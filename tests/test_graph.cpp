@@ -136,6 +136,9 @@ TEST(RangeSlam, RecoversPosesWithFixedAnchors) {
   ASSERT_TRUE(cov.has_value());
   EXPECT_GT(cov->diagonal().minCoeff(), 0.0);
   EXPECT_LT(std::sqrt(cov->trace()), 0.2);
+  const auto all = g.poseCovariances();
+  ASSERT_EQ(all.size(), g.poses());
+  EXPECT_TRUE(all[100].isApprox(*cov, 1e-6));
   std::printf("[ GRAPH    ] pose 100 std (x, y, theta): %.4f %.4f %.4f\n", std::sqrt((*cov)(0, 0)),
               std::sqrt((*cov)(1, 1)), std::sqrt((*cov)(2, 2)));
 }

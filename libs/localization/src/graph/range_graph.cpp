@@ -57,6 +57,24 @@ std::optional<Eigen::Matrix3d> RangeGraph::poseCovariance(int pose) {
   return Eigen::Matrix3d(c);
 }
 
+std::vector<Eigen::Matrix3d> RangeGraph::poseCovariances() {
+  std::vector<Eigen::Matrix3d> out(poses_.size(), Eigen::Matrix3d::Zero());
+  if (!problem_) return {};
+  std::vector<std::pair<const double*, const double*>> blocks;
+  for (auto& p : poses_)
+    if (!problem_->IsParameterBlockConstant(p.data())) blocks.emplace_back(p.data(), p.data());
+  ceres::Covariance::Options options;
+  ceres::Covariance covariance(options);
+  if (!covariance.Compute(blocks, problem_.get())) return {};
+  for (size_t i = 0; i < poses_.size(); ++i) {
+    if (problem_->IsParameterBlockConstant(poses_[i].data())) continue;
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+    if (covariance.GetCovarianceBlockInTangentSpace(poses_[i].data(), poses_[i].data(), c.data()))
+      out[i] = c;
+  }
+  return out;
+}
+
 void RangeGraph::build(const RangeGraphParams& params) {
   params_ = params;
   problem_ = std::make_unique<ceres::Problem>();

@@ -256,10 +256,13 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   if (!g.solve().usable) countRejection("graph_not_usable");
   std::vector<PoseEstimate> out;
   out.reserve(g.poses());
+  const auto covariances =
+      params_.covariance ? g.poseCovariances() : std::vector<Eigen::Matrix3d>{};
   for (size_t i = 0; i < g.poses(); ++i) {
     PoseEstimate e;
     e.t = times[i];
     e.pose = g.pose(i);
+    if (!covariances.empty()) e.covariance = covariances[i];
     out.push_back(e);
   }
   return out;

@@ -172,6 +172,9 @@ class RangeGraph {
   Eigen::Vector2d landmark(size_t i) const { return landmarks_[i]; }
   /// Marginal covariance of a pose after solve() (ceres::Covariance); nothing if it fails.
   std::optional<Eigen::Matrix3d> poseCovariance(int pose);
+  /// Marginal covariances of every pose in one ceres::Covariance computation (zero for held
+  /// poses; empty when it fails).
+  std::vector<Eigen::Matrix3d> poseCovariances();
   /// A prior on a pose (e.g. the front-end filter's estimate), std per component.
   void addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma);
 

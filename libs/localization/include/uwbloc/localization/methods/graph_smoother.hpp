@@ -36,6 +36,7 @@ struct GraphSmootherParams {
   bool icp = false;               ///< front-end mode: add ICP relative-pose edges (lidar-icp)
   double icp_sigma_xy = 0.03;     ///< ICP edge std [m]
   double icp_sigma_theta = 0.01;  ///< ICP edge std [rad]
+  bool covariance = false;        ///< batch: fill each pose's covariance (ceres::Covariance)
   bool lagged = true;             ///< window mode: report each vertex once N-2 later ones are in
   int window = 0;                 ///< 0: batch; N: fixed-lag window of N front-end vertices
   double prior_min_xy = 0.02;     ///< floor on a front-end prior's std [m]
@@ -61,6 +62,7 @@ struct GraphSmootherParams {
     v("icp", icp, "front-end mode: add relative-pose edges from scan matching (lidar-icp)");
     v("icp_xy", icp_sigma_xy, "ICP edge std [m]");
     v("icp_th", icp_sigma_theta, "ICP edge std [rad]");
+    v("covariance", covariance, "batch: compute each output pose's covariance (slower)");
     v("lagged", lagged,
       "window mode: output each pose with a lag of N-2 vertices (else the newest)");
     v("window", window, "0: batch over the whole run; N: online fixed-lag window of N vertices");
