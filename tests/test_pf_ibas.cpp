@@ -42,6 +42,12 @@ loc::PfLocalizerParams ibasParams() {
   return p;
 }
 
+const data::Dataset& demo() {
+  static const auto ds =
+      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
+  return ds;
+}
+
 uwb::Range range(double t, int id, double r) {
   uwb::Range x;
   x.t = t;
@@ -97,8 +103,7 @@ TEST(PfIbas, ScanWithNoReturns) {
 }
 
 TEST(MrptDemo, PfIbasAgainstTheBaselines) {
-  const auto ds =
-      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
+  const auto& ds = demo();
   const auto ibas = eval::evaluateMethod(ds, "pf-ibas", 10, 1);
   const auto sir = eval::evaluateMethod(ds, "pf-sir", 10, 1);
   const auto uwb_pf = eval::evaluateMethod(ds, "uwb-pf", 10, 1);
@@ -120,8 +125,7 @@ TEST(MrptDemo, PfIbasAgainstTheBaselines) {
 
 TEST(MrptDemo, GraphLowersPfIbas) {
   // The paper's Table 4: PF-IBAS without and with the graph, batch and sliding window.
-  const auto ds =
-      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
+  const auto& ds = demo();
   const auto pf = eval::evaluateMethod(ds, "pf-ibas", 10, 1);
   const auto batch = eval::evaluateMethod(ds, "pf-ibas+graph", 10, 1);
   const auto window = eval::evaluateMethod(ds, "pf-ibas+graph:window=10", 10, 1);
