@@ -24,6 +24,8 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   if (params_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
   if (params_.swarm != "none" && params_.swarm != "ibas")
     throw ParamError("parameter 'swarm' must be none or ibas, got '" + params_.swarm + "'");
+  nlos_reason_ = "nlos_" + params_.nlos;
+  swarm_box_ = optim::Box{Eigen::VectorXd(3), Eigen::VectorXd(3)};
   optim::IbasParams ibas;
   ibas.frame_invariant_mutation = true;  // eq. (25) as printed scales with the map coordinates
   ibas.antenna = params_.ibas_step;
@@ -87,7 +89,7 @@ void PfLocalizer::updateRange(const AcceptedRange& r, const ParticleEstimate& e)
                        (params_.nlos == "raycast" && dec.flag_raycast);
   double sig = sigma;
   if (flagged) {
-    countRejection("nlos_" + params_.nlos, dec.anchor_id);
+    countRejection(nlos_reason_, dec.anchor_id);
     if (params_.nlos_action == "reject") {
       stats_.range_decisions.push_back(dec);
       return;
@@ -119,7 +121,7 @@ void PfLocalizer::swarmMove() {
       swarm_pos_(i, 2) = e.mean.z() + wrapAngle(ps.theta[static_cast<size_t>(i)] - e.mean.z());
   }
   // Search box: the cloud's extent, at least 0.3 m (0.2 rad) around the mean.
-  optim::Box box{Eigen::VectorXd(k), Eigen::VectorXd(k)};
+  optim::Box& box = swarm_box_;
   for (Eigen::Index c = 0; c < k; ++c) {
     const double half =
         std::max(3.0 * std::sqrt(std::max(e.covariance(c, c), 0.0)), c == 2 ? 0.2 : 0.3);

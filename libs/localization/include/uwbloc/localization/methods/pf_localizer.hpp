@@ -125,7 +125,9 @@ class PfLocalizer : public UwbEstimator {
   // PF-IBAS state, kept to avoid allocating per epoch.
   optim::BeetleSwarm swarm_;
   Eigen::MatrixXd swarm_pos_;
-  std::string spread_log_;  ///< "t,spread_xy" rows (PF-IBAS)
+  optim::Box swarm_box_;     ///< reused every epoch
+  std::string nlos_reason_;  ///< "nlos_<test>", built once
+  std::string spread_log_;   ///< "t,spread_xy" rows (PF-IBAS)
 };
 
 }  // namespace uwbloc::loc
