@@ -92,11 +92,11 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
   }
   if (front_) {
     if (auto e = front_->process(event)) {
-      front_estimates_.push_back(*e);
+      if (!online()) front_estimates_.push_back(*e);  // kept for the batch solve only
       front_estimate = e;
     }
   }
-  if (front_estimate && params_.window > 0) {
+  if (front_estimate && online()) {
     // A new vertex: the front end's estimate, the odometry and ranges since the last one.
     window_.push_back(
         {*front_estimate, front_estimate->pose, odometry_since_vertex_, ranges_since_vertex_});
@@ -106,7 +106,7 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
     out = solveWindow();
   }
   if (const auto* scan = std::get_if<LaserScan>(&event)) {
-    if (front_ && params_.landmarks && params_.window == 0) {
+    if (front_ && params_.landmarks && !online()) {
       const LandmarkExtractionParams ex;
       corners_.push_back({scan->t, extractCorners(extractLines(*scan, ex), ex)});
     }
@@ -117,19 +117,21 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
       countRejection("non_finite_odometry");
       return out;
     }
-    odometry_.push_back(*odo);
+    if (!online()) odometry_.push_back(*odo);
     odometry_since_vertex_ = composePose(odometry_since_vertex_, odo->delta);
     return out;
   }
   if (const auto accepted = acceptRange(event)) {
-    ranges_.push_back(*accepted);
-    ranges_since_vertex_.push_back(*accepted);
+    if (!online())
+      ranges_.push_back(*accepted);
+    else
+      ranges_since_vertex_.push_back(*accepted);
   }
   return out;
 }
 
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
-  if (front_ && params_.window > 0) {
+  if (online()) {
     std::vector<PoseEstimate> out;
     for (auto& e : front_->finishAll()) {
       window_.push_back({e, e.pose, odometry_since_vertex_, ranges_since_vertex_});

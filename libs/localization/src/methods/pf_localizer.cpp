@@ -236,7 +236,7 @@ std::optional<PoseEstimate> PfLocalizer::doProcess(const Event& event) {
   if (const auto* scan = std::get_if<LaserScan>(&event)) {
     if (!use_lidar_) return out;
     field_->setScan(*scan);
-    epoch_scan_ = *scan;
+    if (params_.landmarks) epoch_scan_ = *scan;  // kept only for corner extraction
     epoch_has_scan_ = true;
   } else {
     if (!use_uwb_) return out;

@@ -11,6 +11,19 @@ namespace uwbloc::loc {
 
 namespace {
 
+// The one walk every resampler shares: out[i] = the first j whose cumulative weight reaches
+// target(i), for count ascending targets in (0, 1]. `weight(j)` is the normalised weight of j.
+template <class Weight, class Target>
+void walkCdf(size_t n, Weight weight, size_t count, Target target, int* out) {
+  double cdf = weight(0);
+  size_t j = 0;
+  for (size_t i = 0; i < count; ++i) {
+    const double t = target(i);
+    while (t > cdf && j + 1 < n) cdf += weight(++j);
+    out[i] = static_cast<int>(j);
+  }
+}
+
 // n independent draws from the weights. Sorted uniforms come from normalised cumulative sums of
 // n + 1 exponential spacings, so one pass over the CDF suffices and nothing is allocated: a
 // first pass sums the spacings, a second (same random stream, replayed) places the pointers.
@@ -25,14 +38,10 @@ class Multinomial : public ResamplingStrategy {
     for (size_t i = 0; i <= n; ++i) total += e(rng);
     Rng replay = start;
     e.reset();
-    double s = 0.0, cdf = w[0];
-    size_t j = 0;
-    for (size_t i = 0; i < n; ++i) {
-      s += e(replay);
-      const double target = s / total;
-      while (target > cdf && j + 1 < n) cdf += w[++j];
-      idx[i] = static_cast<int>(j);
-    }
+    double s = 0.0;
+    walkCdf(
+        n, [&](size_t j) { return w[j]; }, n, [&](size_t) { return (s += e(replay)) / total; },
+        idx.data());
     return true;
   }
 };
@@ -44,13 +53,9 @@ class Systematic : public ResamplingStrategy {
   bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
     const size_t n = w.size();
     const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / n)(rng);
-    double cdf = w[0];
-    size_t j = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const double target = u0 + static_cast<double>(i) / n;
-      while (target > cdf && j + 1 < n) cdf += w[++j];
-      idx[i] = static_cast<int>(j);
-    }
+    walkCdf(
+        n, [&](size_t j) { return w[j]; }, n,
+        [&](size_t i) { return u0 + static_cast<double>(i) / n; }, idx.data());
     return true;
   }
 };
@@ -62,13 +67,9 @@ class Stratified : public ResamplingStrategy {
   bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
     const size_t n = w.size();
     std::uniform_real_distribution<double> u(0.0, 1.0);
-    double cdf = w[0];
-    size_t j = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const double target = (static_cast<double>(i) + u(rng)) / n;
-      while (target > cdf && j + 1 < n) cdf += w[++j];
-      idx[i] = static_cast<int>(j);
-    }
+    walkCdf(
+        n, [&](size_t j) { return w[j]; }, n,
+        [&](size_t i) { return (static_cast<double>(i) + u(rng)) / n; }, idx.data());
     return true;
   }
 };
@@ -89,16 +90,9 @@ class Residual : public ResamplingStrategy {
     const size_t rest = n - k;
     if (rest == 0) return true;
     const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / rest)(rng);
-    double cdf = (n * w[0] - std::floor(n * w[0])) / residual_total;
-    size_t j = 0;
-    for (size_t i = 0; i < rest; ++i) {
-      const double target = u0 + static_cast<double>(i) / rest;
-      while (target > cdf && j + 1 < n) {
-        ++j;
-        cdf += (n * w[j] - std::floor(n * w[j])) / residual_total;
-      }
-      idx[k++] = static_cast<int>(j);
-    }
+    walkCdf(
+        n, [&](size_t m) { return (n * w[m] - std::floor(n * w[m])) / residual_total; }, rest,
+        [&](size_t i) { return u0 + static_cast<double>(i) / rest; }, idx.data() + k);
     return true;
   }
 };

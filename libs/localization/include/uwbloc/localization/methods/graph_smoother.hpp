@@ -80,9 +80,6 @@ class GraphSmoother : public UwbEstimator {
   std::vector<PoseEstimate> doFinishAll() override;
 
  private:
-  struct TimedRange {
-    AcceptedRange r;
-  };
   GraphSmootherParams params_;
   EstimatorContext context_;
   std::unique_ptr<Estimator> front_;
@@ -109,6 +106,8 @@ class GraphSmoother : public UwbEstimator {
   Eigen::Vector3d odometry_since_vertex_ = Eigen::Vector3d::Zero();
   std::vector<AcceptedRange> ranges_since_vertex_;
   std::optional<PoseEstimate> solveWindow();
+  /// Sliding-window mode (needs a front end); otherwise everything is kept for one batch solve.
+  bool online() const { return front_ && params_.window > 0; }
   graph::RangeGraphParams graphParams() const;
   Eigen::Vector3d priorSigma(const PoseEstimate& e) const;
   double first_t_ = 0.0;
