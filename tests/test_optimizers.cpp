@@ -117,16 +117,53 @@ TEST(Ibas, SolvesLowDimensionalProblems) {
 }
 
 TEST(Ibas, SphereTenDimensionsBelow1e6) {
-  // Population 30, 200 iterations, initial step 5, box [-100, 100]^10; mean over seeds 1-10.
+  // Population 30, 200 iterations, initial step 5, box [-100, 100]^10: every one of seeds 1-30
+  // ends below 1e-6 (seeds 1-1000 do too; the worst is 6.3e-7).
   auto ibas = makeOptimizer("ibas");
   const auto b = benchmarks(10)[0];
-  double mean = 0.0, worst = 0.0;
-  for (int seed = 1; seed <= 10; ++seed) {
+  double worst = 0.0;
+  for (int seed = 1; seed <= 30; ++seed) {
     Rng rng(seed);
     const double v = ibas->minimize(b.f, b.box, {}, rng).value;
-    mean += v / 10;
+    EXPECT_LT(v, 1e-6) << "seed " << seed;
     worst = std::max(worst, v);
   }
-  std::printf("[ IBAS     ] 10-D sphere: mean %.3e, worst %.3e over 10 seeds\n", mean, worst);
-  EXPECT_LT(mean, 1e-6);
+  std::printf("[ IBAS     ] 10-D sphere: worst %.3e over seeds 1-30\n", worst);
+}
+
+TEST(Ibas, StepAdaptationIsWhatReachesTheSphereTolerance) {
+  // Without the per-beetle step adaptation the schedule alone leaves some runs short of 1e-6
+  // (a swarm that lags the schedule ends with a step too small to close the gap).
+  auto fixed = makeOptimizer("ibas-fixed");
+  const auto b = benchmarks(10)[0];
+  int below = 0;
+  for (int seed = 1; seed <= 30; ++seed) {
+    Rng rng(seed);
+    below += fixed->minimize(b.f, b.box, {}, rng).value < 1e-6;
+  }
+  std::printf("[ IBAS     ] 10-D sphere without adaptation: %d/30 seeds below 1e-6\n", below);
+  EXPECT_LT(below, 30);
+}
+
+TEST(Ibas, PlateauTiesStillMove) {
+  // On a flat function the antennae tie; the beetles must still move (and stay in the box).
+  BeetleSwarm swarm;
+  Eigen::MatrixXd pos(5, 2);
+  pos.setZero();
+  const Eigen::MatrixXd start = pos;
+  Rng rng(3);
+  const Box box{Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, 1)};
+  swarm.maximize(pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box, 5, 0.1,
+                 rng, nullptr, nullptr);
+  EXPECT_GT((pos - start).norm(), 0.0);
+  EXPECT_TRUE(pos.allFinite());
+  EXPECT_LE(pos.cwiseAbs().maxCoeff(), 1.0);
+  // As PF-IBAS configures it, a flat fitness (an epoch with no information) moves nobody.
+  IbasParams still;
+  still.random_tie_direction = false;
+  BeetleSwarm filter_swarm(still);
+  pos.setZero();
+  filter_swarm.maximize(pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box,
+                        5, 0.1, rng, nullptr, nullptr);
+  EXPECT_EQ((pos - start).norm(), 0.0);
 }

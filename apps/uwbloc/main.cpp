@@ -208,7 +208,7 @@ int main(int argc, char** argv) {
   int opt_runs = 30;
   optim::RunSettings opt_settings;
   uint64_t opt_seed = 1;
-  std::string opt_list = "bas,pso,ga,ba,ibas,ibas-scaled";
+  std::string opt_list = "bas,pso,ga,ba,ibas,ibas-fixed,ibas-scaled";
   std::string fn_list = "f1_sphere,f2_schwefel_2.22,f3_step,f4_rastrigin,f5_griewank";
   auto* bench_opt = app.add_subcommand(
       "bench-optimizers", "The PF-IBAS paper's Table 2: optimisers on benchmark functions");
@@ -226,6 +226,11 @@ int main(int argc, char** argv) {
                    "comma-separated functions (also michalewicz, goldstein_price)")
       ->capture_default_str();
   bench_opt->add_option("--seed", opt_seed, "seed of the first run")->capture_default_str();
+  int opt_dim = 30;
+  bench_opt
+      ->add_option("--dim", opt_dim, "dimensions of f1-f5 (the paper's Table 2: 30)")
+      ->check(CLI::Range(1, 32))
+      ->capture_default_str();
 
   auto* list = app.add_subcommand("methods", "List the methods with their parameters and defaults");
 
@@ -272,9 +277,10 @@ int main(int argc, char** argv) {
         return out;
       };
       const auto cells =
-          eval::optimizerTable(split(opt_list), split(fn_list), opt_runs, opt_settings, opt_seed);
-      std::printf("%d runs, population %d, %d iterations, initial step %g\n", opt_runs,
-                  opt_settings.population, opt_settings.iterations, opt_settings.initial_step);
+          eval::optimizerTable(split(opt_list), split(fn_list), opt_runs, opt_settings, opt_seed, opt_dim);
+      std::printf("%d runs, population %d, %d iterations, initial step %g, f1-f5 in %d-D\n",
+                  opt_runs, opt_settings.population, opt_settings.iterations,
+                  opt_settings.initial_step, opt_dim);
       std::cout << eval::formatOptimizerTable(cells);
       return 0;
     }

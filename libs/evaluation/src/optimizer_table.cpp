@@ -1,5 +1,6 @@
 #include "uwbloc/evaluation/optimizer_table.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -22,10 +23,11 @@ double paperValue(const std::string& opt, const std::string& fn) {
 
 std::vector<OptimizerCell> optimizerTable(const std::vector<std::string>& optimizers,
                                           const std::vector<std::string>& functions, int runs,
-                                          const optim::RunSettings& settings, uint64_t seed) {
+                                          const optim::RunSettings& settings, uint64_t seed,
+                                          int dim) {
   std::vector<OptimizerCell> out;
   for (const auto& fn : functions) {
-    const auto bench = optim::benchmark(fn);
+    const auto bench = optim::benchmark(fn, dim);
     for (const auto& name : optimizers) {
       auto opt = optim::makeOptimizer(name);
       std::vector<double> values;
@@ -40,8 +42,14 @@ std::vector<OptimizerCell> optimizerTable(const std::vector<std::string>& optimi
       for (double v : values) c.mean += v / runs;
       for (double v : values) c.std += (v - c.mean) * (v - c.mean);
       c.std = runs > 1 ? std::sqrt(c.std / (runs - 1)) : 0.0;
+      std::sort(values.begin(), values.end());
+      if (!values.empty()) {
+        const size_t m = values.size() / 2;
+        c.median = values.size() % 2 ? values[m] : 0.5 * (values[m - 1] + values[m]);
+        c.worst = values.back();
+      }
       c.seconds_per_run = secs / runs;
-      c.paper = paperValue(name, fn);
+      c.paper = dim == 30 ? paperValue(name, fn) : NAN;  // the paper's f1-f5 are 30-D
       out.push_back(c);
     }
   }
@@ -51,14 +59,15 @@ std::vector<OptimizerCell> optimizerTable(const std::vector<std::string>& optimi
 std::string formatOptimizerTable(const std::vector<OptimizerCell>& cells) {
   std::string out;
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%-18s %-12s %12s %12s %12s %14s\n", "function", "optimiser",
-                "mean", "std", "s/run", "paper mean");
+  std::snprintf(buf, sizeof buf, "%-18s %-12s %12s %12s %12s %12s %12s %14s\n", "function",
+                "optimiser", "mean", "std", "median", "worst", "s/run", "paper mean");
   out += buf;
   for (const auto& c : cells) {
     char paper[32] = "-";
     if (std::isfinite(c.paper)) std::snprintf(paper, sizeof paper, "%.2e", c.paper);
-    std::snprintf(buf, sizeof buf, "%-18s %-12s %12.3e %12.3e %12.5f %14s\n", c.function.c_str(),
-                  c.optimizer.c_str(), c.mean, c.std, c.seconds_per_run, paper);
+    std::snprintf(buf, sizeof buf, "%-18s %-12s %12.3e %12.3e %12.3e %12.3e %12.5f %14s\n",
+                  c.function.c_str(), c.optimizer.c_str(), c.mean, c.std, c.median, c.worst,
+                  c.seconds_per_run, paper);
     out += buf;
   }
   return out;

@@ -29,6 +29,7 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   optim::IbasParams ibas;
   ibas.frame_invariant_mutation = true;  // eq. (25) as printed scales with the map coordinates
   ibas.antenna = params_.ibas_step;
+  ibas.random_tie_direction = false;  // a flat epoch fitness carries no information
   ibas.move_mask = Eigen::Vector3d(1.0, 1.0, params_.ibas_theta ? 1.0 : 0.0);
   swarm_ = optim::BeetleSwarm(ibas);
   if ((use_lidar_ || params_.init == "global" || params_.nlos == "raycast") && !context.map)

@@ -290,6 +290,8 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
   SmallVec swarm_best = personal_best_.row(best_i).transpose();
   double swarm_value = personal_value_(best_i);
   double step = initial_step, d = params_.antenna;
+  // Each beetle's own multiplier on the scheduled step (1 when adaptation is off).
+  step_scale_.setOnes(n);
   SmallVec xi(k), v(k), probe(k), moved(k);
   for (int it = 0; it < iterations; ++it) {
     const double omega =
@@ -299,9 +301,14 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
     for (Eigen::Index i = 0; i < n; ++i) {
       xi = x.row(i).transpose();
       // Eq. (21): inertia plus pulls towards the personal and the swarm best.
-      v = omega * velocity_.row(i).transpose() +
-          params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
-          params_.c2 * u(rng) * towards(xi, swarm_best);
+      if (params_.normalize_pulls)
+        v = omega * velocity_.row(i).transpose() +
+            params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
+            params_.c2 * u(rng) * towards(xi, swarm_best);
+      else
+        v = omega * velocity_.row(i).transpose() +
+            params_.c1 * u(rng) * (personal_best_.row(i).transpose() - xi) +
+            params_.c2 * u(rng) * (swarm_best - xi);
       v = v.cwiseMax(-vmax).cwiseMin(vmax);
       if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
       // A beetle that is both its own and the swarm's best gets no pull, and its inertia dies
@@ -317,19 +324,28 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
       // antenna length follows the step (BAS's eq. 11, delta = c d with c = 1) once the step
       // has shrunk below the eq. (13) length, so that the two antennae sample at the scale
       // the beetle moves at.
-      const double antenna = std::min(d, step);
+      const double beetle_step = step * step_scale_(i);
+      const double antenna = std::min(d, beetle_step);
       probe = xi + v * antenna / 2.0;
       clampInto(probe, box);
       const double fr = f(probe);
       probe = xi - v * antenna / 2.0;
       clampInto(probe, box);
       const double fl = f(probe);
-      moved = xi + step * v * sign(fr - fl);
+      // Equal antennae (a plateau) give eq. (24) no direction; the beetle then tries one of
+      // the two at random instead of standing still, if so configured.
+      double direction = sign(fr - fl);
+      if (direction == 0.0 && params_.random_tie_direction) direction = u(rng) < 0.5 ? -1.0 : 1.0;
+      moved = xi + beetle_step * v * direction;
       clampInto(moved, box);
       double fm = f(moved);
       evals += 3;
       velocity_.row(i) = v.transpose();
-      if (params_.greedy && fm < current_value_(i)) {
+      const bool worse = fm < current_value_(i);
+      if (params_.adaptive_step)
+        step_scale_(i) = worse ? step_scale_(i) * params_.step_shrink
+                               : std::min(1.0, step_scale_(i) * params_.step_grow);
+      if (params_.greedy && worse) {
         fm = current_value_(i);  // stay
       } else {
         x.row(i) = moved.transpose();
@@ -394,15 +410,25 @@ std::unique_ptr<Optimizer> makeOptimizer(const std::string& name) {
     p.frame_invariant_mutation = true;
     return std::make_unique<Ibas>(p, "IBAS-scaled");
   }
+  if (name == "ibas-fixed") {  // the geometric schedule alone, without per-beetle adaptation
+    p.adaptive_step = false;
+    p.final_step_ratio = 1e-3;
+    return std::make_unique<Ibas>(p, "IBAS-fixed");
+  }
+  if (name == "ibas-distance-pulls") {  // eq. (21) without the normalisation, as in PSO
+    p.normalize_pulls = false;
+    return std::make_unique<Ibas>(p, "IBAS-dist");
+  }
   if (name == "ibas-paper") {
     p.schedule = "paper";
+    p.adaptive_step = false;
     return std::make_unique<Ibas>(p, "IBAS-paper");
   }
   if (name == "pso") return std::make_unique<Pso>();
   if (name == "ga") return std::make_unique<Ga>();
   if (name == "ba") return std::make_unique<Bat>();
   throw std::invalid_argument("unknown optimiser '" + name +
-                              "' (known: bas, ibas, ibas-paper, ibas-scaled, pso, ga, ba)");
+                              "' (known: bas, ibas, ibas-fixed, ibas-distance-pulls, ibas-paper, ibas-scaled, pso, ga, ba)");
 }
 
 std::vector<Benchmark> benchmarks(int dim) {

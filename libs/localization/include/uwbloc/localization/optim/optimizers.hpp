@@ -63,6 +63,8 @@ Eigen::VectorXd cauchyMutationScaled(const Eigen::VectorXd& best, const Eigen::V
 struct IbasParams {
   double omega_max = 0.9, omega_min = 0.4;  ///< eq. (18)
   double c1 = 1.5, c2 = 1.5;                ///< eq. (21) weights of personal and swarm best
+  /// Eq. (21) pulls along unit vectors (as printed); false pulls by the distance, as PSO does.
+  bool normalize_pulls = true;
   double delta_e0 = 0.95, delta_e1 = 0.35;  ///< eq. (19)
   double antenna = 2.0;                     ///< initial antenna length d [units of the box]
   double antenna_decay = 0.95;              ///< eq. (13): d <- decay d + 0.01
@@ -77,7 +79,18 @@ struct IbasParams {
   /// Per-dimension mask on the velocity (empty: all 1). A 0 keeps that coordinate of every
   /// beetle fixed while the fitness still sees it (PF-IBAS moving x, y but not the heading).
   Eigen::VectorXd move_mask;
-  double final_step_ratio = 1e-3;
+  /// Where the geometric schedule ends, as a fraction of the initial step.
+  double final_step_ratio = 5e-3;
+  /// Per-beetle step adaptation on top of the schedule: a beetle whose step made it worse
+  /// multiplies its own step by `step_shrink`, one that did not by `step_grow` (never above
+  /// the scheduled step). A beetle near an optimum then steps at the scale of its distance to
+  /// it instead of overshooting until the schedule catches up.
+  bool adaptive_step = true;
+  /// Equal antennae (a plateau, e.g. the step function f3) leave eq. (24) without a direction:
+  /// true steps one way at random, false keeps the beetle in place (a filter whose fitness is
+  /// flat because an epoch carries no information must not move its particles).
+  bool random_tie_direction = true;
+  double step_grow = 1.2, step_shrink = 0.7;
 };
 
 /// The improved beetle swarm, usable on an external population (PF-IBAS moves particles with
@@ -97,11 +110,13 @@ class BeetleSwarm {
  private:
   IbasParams params_;
   Eigen::MatrixXd velocity_, personal_best_;
-  Eigen::VectorXd personal_value_, current_value_;
+  Eigen::VectorXd personal_value_, current_value_, step_scale_;
 };
 
-/// "bas", "ibas" (geometric step schedule), "ibas-paper" (eq. 19-20 as printed),
-/// "ibas-scaled" (frame-invariant mutation), "pso", "ga", "ba".
+/// "bas", "ibas" (geometric step schedule with per-beetle adaptation), "ibas-fixed" (the
+/// schedule alone, ending at 1e-3), "ibas-distance-pulls" (eq. 21 unnormalised),
+/// "ibas-paper" (eq. 19-20 as printed), "ibas-scaled" (frame-invariant mutation), "pso", "ga",
+/// "ba".
 std::unique_ptr<Optimizer> makeOptimizer(const std::string& name);
 
 /// A benchmark function with its search box and known minimum.
