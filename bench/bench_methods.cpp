@@ -33,9 +33,11 @@ const bool registered = [] {
   for (const auto& name : uwbloc::loc::Registry::builtin().names())
     benchmark::RegisterBenchmark(("mrpt_demo/" + name).c_str(), replay, name)
         ->Unit(benchmark::kMillisecond);
-  // The graph back end online: a fixed-lag window of 10 vertices.
-  benchmark::RegisterBenchmark("mrpt_demo/pf-ibas+graph:window=10", replay, std::string("pf-ibas+graph:window=10"))
-      ->Unit(benchmark::kMillisecond);
+  // The PF-IBAS paper's Table 3 particle counts, and the graph back end online (a fixed-lag
+  // window of 10 vertices).
+  for (const std::string spec : {"pf-sir:n=50", "pf-sir:n=100", "pf-ibas+graph:window=10"})
+    benchmark::RegisterBenchmark(("mrpt_demo/" + spec).c_str(), replay, spec)
+        ->Unit(benchmark::kMillisecond);
   return true;
 }();
 
