@@ -97,8 +97,9 @@ TEST(Ibas, BeatsBasOnTheFiveFunctions) {
 }
 
 TEST(Ibas, SolvesLowDimensionalProblems) {
-  // Goldstein-Price (unimodal near its minimum) every time; Michalewicz has local minima in this
-  // box, where a beetle that only accepts improvements can stay: report how often it does not.
+  // Goldstein-Price every time; Michalewicz has local minima in this box where a greedy beetle
+  // can stay, but the swarm with step adaptation escapes them on all of seeds 1-30 (the
+  // schedule alone, ibas-fixed, did on 9 of 10).
   auto ibas = makeOptimizer("ibas");
   const auto g = benchmark("goldstein_price", 2), m = benchmark("michalewicz", 2);
   int within = 0;
@@ -113,7 +114,7 @@ TEST(Ibas, SolvesLowDimensionalProblems) {
   std::printf("[ IBAS     ] Michalewicz: %d/10 seeds within 0.01 of -1.9668, best %.4f\n", within,
               best_m);
   EXPECT_NEAR(best_m, -1.9668, 0.01);
-  EXPECT_GE(within, 5);
+  EXPECT_EQ(within, 10);
 }
 
 TEST(Ibas, SphereTenDimensionsBelow1e6) {
