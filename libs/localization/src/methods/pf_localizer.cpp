@@ -159,17 +159,20 @@ void PfLocalizer::swarmMove() {
   char row[64];
   std::snprintf(row, sizeof row, "%.6f,%.5f\n", epoch_t_, spread);
   spread_log_ += row;
+  // Eq. (28): the weights are the fitness at the moved positions, normalised. The swarm has
+  // already evaluated it there; only particles moved again by a diversity injection need it anew.
+  const Eigen::VectorXd& fitness_at = swarm_.values();
   if (spread < params_.min_spread) {
     std::normal_distribution<double> g(0.0, params_.min_spread);
     for (size_t i = 0; i < ps.size(); ++i) {
       ps.x[i] += g(pf_.rng());
       ps.y[i] += g(pf_.rng());
+      ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
     }
     countRejection("swarm_diversity_injection");
+  } else {
+    for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = fitness_at(static_cast<Eigen::Index>(i));
   }
-  // Eq. (28): the weights are the fitness at the moved positions, normalised.
-  for (size_t i = 0; i < ps.size(); ++i)
-    ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
   pf_.normalize();
 }
 
