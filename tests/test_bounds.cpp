@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/simulator.hpp"
@@ -14,14 +15,6 @@
 
 using namespace uwbloc;
 
-namespace {
-data::Dataset simulated(const std::string& scenario, uint64_t seed) {
-  const auto dir = test::scratchDir() / scenario;
-  const auto s = data::loadScenario(std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/" +
-                                    scenario + ".ini");
-  return data::loadDataset(data::writeSimulation(s, seed, dir.string()), "");
-}
-}  // namespace
 
 TEST(StaticCrlb, AnalyticValues) {
   // Four anchors at the tag's height, tag in the centre: J = 2/sigma^2 I, trace(J^-1) = sigma^2.
@@ -43,7 +36,7 @@ TEST(StaticCrlb, AnalyticValues) {
 }
 
 TEST(StaticCrlb, GaussNewtonIsEfficientOnAStaticLosTag) {
-  const auto ds = simulated("static_los", 21);
+  const auto ds = test::simulatedScenario("static_los", 21);
   const auto run = eval::runMethod(ds, "uwb-gn", 1);
   const auto m = eval::computeMetrics(eval::associate(run.trajectory, ds.ground_truth),
                                       run.trajectory, ds.ground_truth);
@@ -59,7 +52,7 @@ TEST(StaticCrlb, GaussNewtonIsEfficientOnAStaticLosTag) {
 }
 
 TEST(PosteriorCrlb, AccumulatesInformation) {
-  const auto ds = simulated("static_los", 3);
+  const auto ds = test::simulatedScenario("static_los", 3);
   const auto pcrb = eval::posteriorCrlb(ds, *ds.manifest.bounds);
   const auto crlb = eval::staticCrlbSeries(ds, ds.manifest.bounds->range_sigma);
   ASSERT_GT(pcrb.t.size(), 100u);
@@ -71,12 +64,12 @@ TEST(PosteriorCrlb, AccumulatesInformation) {
   // With odometry as the motion model the bound uses the heading too, and stays finite.
   data::BoundsSpec odo = *ds.manifest.bounds;
   odo.motion = "odometry";
-  const auto with_odo = eval::posteriorCrlb(simulated("tracking_los", 3), odo);
+  const auto with_odo = eval::posteriorCrlb(test::simulatedScenario("tracking_los", 3), odo);
   EXPECT_TRUE(std::isfinite(with_odo.mean(5.0)));
 }
 
 TEST(PosteriorCrlb, TrackingEfficiencyIsReported) {
-  const auto ds = simulated("tracking_los", 4);
+  const auto ds = test::simulatedScenario("tracking_los", 4);
   const auto bounds = eval::computeBounds(ds);
   double best = 1e9;
   std::string best_name;

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/dataset.hpp"
@@ -14,20 +15,10 @@
 
 using namespace uwbloc;
 
-namespace {
-const std::string kScenarios = std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/";
-
-data::Dataset simulated(const std::string& scenario, uint64_t seed) {
-  const auto dir = test::scratchDir() / (scenario + "_" + std::to_string(seed));
-  const auto s = data::loadScenario(kScenarios + scenario + ".ini");
-  return data::loadDataset(data::writeSimulation(s, seed, dir.string()), "");
-}
-}  // namespace
-
 class EveryScenario : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EveryScenario, RunsThroughEveryMethod) {
-  const auto ds = simulated(GetParam(), 1);
+  const auto ds = test::simulatedScenario(GetParam(), 1);
   std::vector<eval::MethodSummary> all;
   for (const auto& m : loc::Registry::builtin().names()) {
     if (!eval::missingNeeds(ds, m).empty()) continue;  // e.g. LiDAR methods in an open field
@@ -57,7 +48,7 @@ TEST(Greenhouse, TableBesideThePaper) {
     const int seeds = 5;
     for (int seed = 1; seed <= seeds; ++seed) {
       const auto ds =
-          simulated("greenhouse_r" + std::to_string(level + 1), static_cast<uint64_t>(seed));
+          test::simulatedScenario("greenhouse_r" + std::to_string(level + 1), static_cast<uint64_t>(seed));
       uwb += eval::evaluateMethod(ds, "uwb-ls", 1, 1).metrics.mae_2d / seeds;
       const std::string kf_spec = "uwb-kf:solver=ls,sigma=" + std::to_string(sigma[level]);
       kf += eval::evaluateMethod(ds, kf_spec, 1, 1).metrics.mae_2d / seeds;

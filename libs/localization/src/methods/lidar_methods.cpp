@@ -57,6 +57,7 @@ void addLidarMethods(Registry& r) {
                   {"ibas_step", "0.1"},
                   {"ibas_theta", "0"},
                   {"ibas_resample", "1"},
+                  {"ibas_weights", "sequential"},
                   {"landmarks", "0"}}));
   r.add(pfMethod("uwb-pf",
                  "UWB + odometry particle filter (the UWB single-sensor particle baseline), "

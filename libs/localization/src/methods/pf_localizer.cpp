@@ -1,5 +1,6 @@
 #include "uwbloc/localization/methods/pf_localizer.hpp"
 
+#include <Eigen/Dense>
 #include <cmath>
 
 #include "uwbloc/uwb/range_model.hpp"
@@ -24,6 +25,10 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   if (params_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
   if (params_.swarm != "none" && params_.swarm != "ibas")
     throw ParamError("parameter 'swarm' must be none or ibas, got '" + params_.swarm + "'");
+  if (params_.ibas_weights != "fitness" && params_.ibas_weights != "sequential" &&
+      params_.ibas_weights != "posterior")
+    throw ParamError("parameter 'ibas_weights' must be fitness, sequential or posterior, got '" +
+                     params_.ibas_weights + "'");
   nlos_reason_ = "nlos_" + params_.nlos;
   swarm_box_ = optim::Box{Eigen::VectorXd(3), Eigen::VectorXd(3)};
   optim::IbasParams ibas;
@@ -136,6 +141,7 @@ void PfLocalizer::swarmMove() {
   };
   long evals = 0;
   double best = 0.0;
+  swarm_start_ = swarm_pos_;
   swarm_.maximize(swarm_pos_, fitness, box, params_.ibas_iterations, params_.ibas_step, pf_.rng(),
                   &best, &evals);
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -173,12 +179,41 @@ void PfLocalizer::swarmMove() {
   } else {
     for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = fitness_at(static_cast<Eigen::Index>(i));
   }
+  if (params_.ibas_weights != "fitness") {
+    // Sequential importance weights: the weight each particle carried into this epoch (its
+    // history since the last resampling) times the epoch's likelihood.
+    for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] += prior_log_w_[i];
+  }
+  if (params_.ibas_weights == "posterior") {
+    // And the predicted density's ratio between where the swarm left each particle and where
+    // the motion model put it (the heading only when the swarm moves it).
+    const Eigen::Index dims = params_.ibas_theta ? 3 : 2;
+    const Eigen::MatrixXd info =
+        (predicted_.covariance.topLeftCorner(dims, dims) +
+         1e-6 * Eigen::MatrixXd::Identity(dims, dims))
+            .inverse();
+    const auto offset = [&](double x, double y, double th) {
+      Eigen::Vector3d d(x - predicted_.mean.x(), y - predicted_.mean.y(),
+                        wrapAngle(th - predicted_.mean.z()));
+      const Eigen::VectorXd dd = d.head(dims);
+      return 0.5 * dd.dot(info * dd);
+    };
+    for (size_t i = 0; i < ps.size(); ++i) {
+      const auto r = static_cast<Eigen::Index>(i);
+      ps.log_w[i] += offset(swarm_start_(r, 0), swarm_start_(r, 1), swarm_start_(r, 2)) -
+                     offset(ps.x[i], ps.y[i], ps.theta[i]);
+    }
+  }
   pf_.normalize();
 }
 
 std::optional<PoseEstimate> PfLocalizer::finishEpoch() {
   epoch_open_ = false;
   used_ranges_.clear();
+  if (params_.swarm == "ibas" && params_.ibas_weights != "fitness") {
+    prior_log_w_ = pf_.particles().log_w;
+    if (params_.ibas_weights == "posterior") predicted_ = pf_.estimate();
+  }
   if (epoch_has_scan_) {
     if (field_->rays() == 0) {
       countRejection("scan_without_returns");

@@ -50,6 +50,12 @@ struct PfLocalizerParams {
   bool ibas_theta = true;              ///< IBAS moves the heading too (else x, y only)
   double min_spread = 0.02;            ///< inject diversity below this swarm spread [m]
   bool ibas_resample = false;          ///< after the swarm, also resample when ESS/N < ess
+  /// Weights after the swarm: "fitness" (eq. 28 as printed: the epoch's likelihood at the moved
+  /// positions, whatever the particle weighed before), "sequential" (the weight it carried into
+  /// the epoch times that likelihood: a proper sequential importance weight between
+  /// resamplings) or "posterior" (sequential, times the predicted density's ratio between the
+  /// moved and the original position, the predicted cloud taken as a Gaussian).
+  std::string ibas_weights = "fitness";
   bool landmarks = true;               ///< build and save a corner-landmark map along the run
   double landmark_sigma = 0.05;        ///< std of a corner observation [m]
 
@@ -82,6 +88,9 @@ struct PfLocalizerParams {
     v("ibas_theta", ibas_theta, "IBAS moves the heading too");
     v("min_spread", min_spread, "inject diversity when the swarm spread falls below [m]");
     v("ibas_resample", ibas_resample, "after the swarm, also resample when ESS/N < ess");
+    v("ibas_weights", ibas_weights,
+      "weights after the swarm: fitness (eq. 28), sequential (carried weight x likelihood) or "
+      "posterior (sequential x predicted-density ratio for the move)");
     v("landmarks", landmarks, "build a corner-landmark map (saved as <method>_landmarks.csv)");
     v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
   }
@@ -124,7 +133,9 @@ class PfLocalizer : public UwbEstimator {
   std::vector<AcceptedRange> epoch_ranges_, used_ranges_;
   // PF-IBAS state, kept to avoid allocating per epoch.
   optim::BeetleSwarm swarm_;
-  Eigen::MatrixXd swarm_pos_;
+  Eigen::MatrixXd swarm_pos_, swarm_start_;
+  ParticleEstimate predicted_;         ///< the cloud after the motion, before this epoch's data
+  std::vector<double> prior_log_w_;    ///< the weights before this epoch's data
   optim::Box swarm_box_;     ///< reused every epoch
   std::string nlos_reason_;  ///< "nlos_<test>", built once
   std::string spread_log_;   ///< "t,spread_xy" rows (PF-IBAS)
