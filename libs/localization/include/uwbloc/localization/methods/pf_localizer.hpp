@@ -14,8 +14,9 @@
 // swarm = ibas, move the particles with the improved beetle swarm (PF-IBAS, the paper's
 // §2.1.3): the fitness is the epoch's log-likelihood (eq. 26 over the NLOS-cleaned ranges, plus
 // the LiDAR field), no particle is discarded, and the weights are the fitness at the moved
-// positions, normalised (eq. 28). When the swarm's spread collapses below `min_spread`, jitter
-// of that size is injected so that the estimate cannot freeze.
+// positions (eq. 28), by default times the weight each particle carried into the epoch
+// (`ibas_weights`). When the swarm's spread collapses below `min_spread`, jitter of that size is
+// injected so that the estimate cannot freeze.
 #pragma once
 
 #include <memory>
