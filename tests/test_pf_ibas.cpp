@@ -172,3 +172,24 @@ TEST(PfIbas, UnknownWeightingIsNamed) {
       [&] { loc::PfLocalizer pf(ibasParams("likelihood"), rig.ctx, false, true); },
       {"ibas_weights", "likelihood"});
 }
+
+TEST(PfIbas, CollapsedSwarmGetsDiversityCountedApartFromRejections) {
+  // Every particle starts on one spot: the swarm's spread is below min_spread at once, jitter is
+  // injected (and counted as such), and no measurement is counted as rejected for it.
+  Rig rig({{1, {0, 0, 2}}, {2, {8, 0, 2}}, {3, {0, 8, 2}}});
+  auto p = ibasParams("sequential");
+  p.init_xy = 1e-4;
+  p.init_theta_deg = 0.01;
+  loc::PfLocalizer pf(p, rig.ctx, false, true);
+  const Eigen::Vector2d at(1.5, 1.5);
+  for (int k = 0; k < 3; ++k)
+    for (int id = 1; id <= 3; ++id) {
+      const Eigen::Vector3d a = rig.ctx.anchors[static_cast<size_t>(id - 1)].position;
+      pf.process(range(1.0 + k, id, std::hypot((a.head<2>() - at).norm(), a.z() - 1.0)));
+    }
+  pf.finish();
+  expectProperWeights(pf, "collapsed swarm");
+  EXPECT_GE(pf.statistics().swarm_injections, 1);
+  EXPECT_EQ(pf.statistics().rejected.count("swarm_diversity_injection"), 0u);
+  EXPECT_EQ(pf.statistics().accepted_ranges, 9);
+}

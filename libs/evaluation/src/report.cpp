@@ -97,6 +97,7 @@ std::string formatMetricsJson(const data::Dataset& dataset,
         e["rejected_by_anchor"][std::to_string(anchor)][reason] = count;
     e["accepted_ranges"] = m.accepted_ranges;
     e["resets"] = m.resets;
+    e["swarm_injections"] = m.swarm_injections;
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
     for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
@@ -206,6 +207,10 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
     }
     out << "\n";
   }
+  for (const auto& m : methods)
+    if (m.swarm_injections > 0)
+      out << "  " << m.spec << " swarm: " << m.swarm_injections
+          << " diversity injections (spread below min_spread)\n";
   return out.str();
 }
 

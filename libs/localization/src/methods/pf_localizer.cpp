@@ -175,7 +175,7 @@ void PfLocalizer::swarmMove() {
       ps.y[i] += g(pf_.rng());
       ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
     }
-    countRejection("swarm_diversity_injection");
+    ++stats_.swarm_injections;
   } else {
     for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = fitness_at(static_cast<Eigen::Index>(i));
   }

@@ -41,6 +41,7 @@ struct EstimatorStatistics {
   std::map<int, std::map<std::string, long>> rejected_by_anchor;  ///< anchor -> reason -> count
   long accepted_ranges = 0;
   long resets = 0;  ///< divergence re-initialisations
+  long swarm_injections = 0;  ///< PF-IBAS: jitter injected into a collapsed swarm (not a rejection)
 };
 
 /// What a method may know besides the events: anchors, the start pose (for tracking and dead
