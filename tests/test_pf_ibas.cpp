@@ -193,3 +193,13 @@ TEST(PfIbas, CollapsedSwarmGetsDiversityCountedApartFromRejections) {
   EXPECT_EQ(pf.statistics().rejected.count("swarm_diversity_injection"), 0u);
   EXPECT_EQ(pf.statistics().accepted_ranges, 9);
 }
+
+TEST(MrptDemo, GraphReportsItsFrontEndsRejections) {
+  // pf-ibas+graph: the front end's NLOS rejections and range decisions reach the report.
+  const auto g = eval::evaluateMethod(demo(), "pf-ibas+graph", 1, 1);
+  const auto f = eval::evaluateMethod(demo(), "pf-ibas", 1, 1);
+  ASSERT_TRUE(g.rejected.count("front:nlos_lidar"));
+  EXPECT_EQ(g.rejected.at("front:nlos_lidar"), f.rejected.at("nlos_lidar"));
+  EXPECT_EQ(g.range_decisions.size(), f.range_decisions.size());
+  EXPECT_EQ(g.swarm_injections, f.swarm_injections);
+}

@@ -130,10 +130,24 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
   return out;
 }
 
+void GraphSmoother::mergeFrontStatistics() {
+  const EstimatorStatistics& f = front_->statistics();
+  for (const auto& [reason, count] : f.rejected) stats_.rejected["front:" + reason] += count;
+  for (const auto& [anchor, reasons] : f.rejected_by_anchor)
+    for (const auto& [reason, count] : reasons)
+      stats_.rejected_by_anchor[anchor]["front:" + reason] += count;
+  stats_.range_decisions.insert(stats_.range_decisions.end(), f.range_decisions.begin(),
+                                f.range_decisions.end());
+  stats_.resets += f.resets;
+  stats_.swarm_injections += f.swarm_injections;
+}
+
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   if (online()) {
     std::vector<PoseEstimate> out;
-    for (auto& e : front_->finishAll()) {
+    auto rest = front_->finishAll();
+    mergeFrontStatistics();
+    for (auto& e : rest) {
       window_.push_back({e, e.pose, odometry_since_vertex_, ranges_since_vertex_});
       odometry_since_vertex_.setZero();
       ranges_since_vertex_.clear();
@@ -150,8 +164,10 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
       }
     return out;
   }
-  if (front_)
+  if (front_) {
     for (auto& e : front_->finishAll()) front_estimates_.push_back(e);
+    mergeFrontStatistics();
+  }
   graph::RangeGraph g;
   g.setAnchors(context_.anchors);
   std::vector<double> times;

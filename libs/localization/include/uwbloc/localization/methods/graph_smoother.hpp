@@ -80,6 +80,10 @@ class GraphSmoother : public UwbEstimator {
   std::vector<PoseEstimate> doFinishAll() override;
 
  private:
+  /// Adds the front end's counts to this method's, its rejections as "front:<reason>", and its
+  /// range decisions (so the report scores the front end's NLOS test under this method's name).
+  void mergeFrontStatistics();
+
   GraphSmootherParams params_;
   EstimatorContext context_;
   std::unique_ptr<Estimator> front_;
