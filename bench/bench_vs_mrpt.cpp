@@ -1,13 +1,20 @@
-// Our lidar-mcl against MRPT's own pf-localization (mrpt-apps), on the same rawlog and map, in
-// the same run on the same machine: same particle count, same start box (GT +- 0.5 m, +- 20 deg)
-// and the same likelihood-field settings. MRPT's estimates are read from its log and scored with
-// our evaluation. Usage: bench_vs_mrpt [runs=10] [particles=300]
+// Our estimators against MRPT's own apps (mrpt-apps) on the MRPT UWB demo, in the same run on
+// the same machine, MRPT's estimates read from its console output and scored with our
+// evaluation:
+// - lidar-mcl against pf-localization: same particle count, same start box (GT +- 0.5 m,
+//   +- 20 deg) and the same likelihood-field settings;
+// - uwb-pf (and uwb-ekf) against ro-localization, run with the configuration MRPT ships for this
+//   very log (config_files/ro-localization/UWB_localization_demo.ini: 15000 particles, beacon
+//   std 0.17 m, start box +- 0.5 m with any heading), and with that file at our particle count.
+// Usage: bench_vs_mrpt [runs=10] [particles=300] [ro_particles=15000]
+#include <Eigen/Geometry>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <vector>
 
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/text_io.hpp"
@@ -37,11 +44,114 @@ std::string config(const fs::path& dir, int particles) {
   return c.str();
 }
 
+// The configuration MRPT ships for the demo, with absolute paths, no log files and no 3D scenes.
+// ro-localization works in the beacons' frame; `origin` receives the start pose it states there
+// ([OdometryEstimation] odometry_X/Y/PHI), the origin of the ground truth's (and our) frame.
+std::string roConfig(int particles, Eigen::Vector3d& origin) {
+  const std::string shipped = "/usr/share/mrpt/config_files/ro-localization/UWB_localization_demo.ini";
+  std::ifstream in(shipped);
+  if (!in) return {};
+  std::ostringstream out;
+  origin.setZero();
+  const std::regex start(R"(^odometry_(X|Y|PHI)\s*=\s*([-\d.]+))");
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (std::regex_search(line, m, start))
+      origin(m[1] == "X" ? 0 : m[1] == "Y" ? 1 : 2) =
+          std::stod(m[2]) * (m[1] == "PHI" ? M_PI / 180.0 : 1.0);
+    if (line.rfind("sampleSize=", 0) == 0) line = "sampleSize=" + std::to_string(particles);
+    if (line.rfind("logOutput_dir=", 0) == 0) line = "logOutput_dir=";
+    if (line.rfind("3DSceneFrequency=", 0) == 0) line = "3DSceneFrequency=-1";
+    const auto rel = line.find("../../datasets/");
+    if (rel != std::string::npos) line.replace(rel, 15, "/usr/share/mrpt/datasets/");
+    out << line << "\n";
+  }
+  return out.str();
+}
+
+struct Row {
+  double x = 0, y = 0, rmse = 0, max = 0, ms = 0;
+  int runs = 0;
+  std::vector<double> each;  ///< rmse_2d of every run
+  void add(const eval::Metrics& m, double ms_per_step) {
+    each.push_back(m.rmse_2d);
+    x += m.rmse_x;
+    y += m.rmse_y;
+    rmse += m.rmse_2d;
+    max += m.max_2d;
+    ms += ms_per_step;
+    ++runs;
+  }
+  void print(const std::string& name) const {
+    if (!runs) return;
+    std::printf("%-36s %8.3f %8.3f %8.3f %8.3f %10.3f   runs:", name.c_str(), x / runs, y / runs,
+                rmse / runs, max / runs, ms / runs);
+    for (double v : each) std::printf(" %.3f", v);
+    std::printf("\n");
+  }
+};
+
+void printOurs(const data::Dataset& ds, const std::string& spec, int runs) {
+  const auto ours = eval::evaluateMethod(ds, spec, runs, 1);
+  std::printf("%-36s %8.3f %8.3f %8.3f %8.3f %10.3f\n", ("uwbloc " + spec).c_str(),
+              ours.metrics.rmse_x, ours.metrics.rmse_y, ours.metrics.rmse_2d, ours.metrics.max_2d,
+              ours.ms_per_step);
+}
+
+// MRPT ro-localization: "RAWLOG_ENTRY: e" (e = 2k + 1 after step k's action and observations;
+// 0 for the first), then "Done! in t ms" and "PDF est: (x,y,phideg)".
+Row runRoLocalization(const data::Dataset& ds, const fs::path& dir, int particles, int runs) {
+  Row row;
+  Eigen::Vector3d origin;
+  const std::string cfg = roConfig(particles, origin);
+  const Eigen::Rotation2Dd to_ours(-origin.z());
+  if (cfg.empty()) {
+    std::fprintf(stderr, "MRPT's ro-localization demo configuration is missing (mrpt-common)\n");
+    return row;
+  }
+  data::writeFileAtomic((dir / "ro.ini").string(), cfg);
+  const std::regex entry(R"(RAWLOG_ENTRY: (\d+))"),
+      pdf(R"(PDF est: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"), done(R"(Done! in ([\d.]+)ms)");
+  for (int r = 0; r < runs; ++r) {
+    const std::string cmd = "cd " + dir.string() + " && ro-localization ro.ini > ro_log.txt 2>&1";
+    if (std::system(cmd.c_str()) != 0) {
+      std::fprintf(stderr, "ro-localization failed (is mrpt-apps installed?); see %s\n",
+                   (dir / "ro_log.txt").c_str());
+      break;
+    }
+    std::ifstream log(dir / "ro_log.txt");
+    std::vector<loc::PoseEstimate> traj;
+    double ms = 0;
+    long n_done = 0, k = -1;
+    for (std::string line; std::getline(log, line);) {
+      std::smatch m;
+      if (std::regex_search(line, m, entry)) k = std::stol(m[1]) / 2;
+      if (std::regex_search(line, m, done)) {
+        ms += std::stod(m[1]);
+        ++n_done;
+      }
+      if (std::regex_search(line, m, pdf) && k >= 0 &&
+          static_cast<size_t>(k) < ds.step_times.size()) {
+        loc::PoseEstimate e;
+        e.t = ds.step_times[static_cast<size_t>(k)];
+        const Eigen::Vector2d p(std::stod(m[1]), std::stod(m[2]));
+        e.pose << to_ours * (p - origin.head<2>()),
+            std::stod(m[3]) * M_PI / 180.0 - origin.z();
+        traj.push_back(e);
+      }
+    }
+    row.add(eval::computeMetrics(eval::associate(traj, ds.ground_truth), traj, ds.ground_truth),
+            n_done ? ms / n_done : 0.0);
+  }
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const int runs = argc > 1 ? std::atoi(argv[1]) : 10;
   const int particles = argc > 2 ? std::atoi(argv[2]) : 300;
+  const int ro_particles = argc > 3 ? std::atoi(argv[3]) : 15000;
   const auto ds =
       data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
   const fs::path dir = fs::temp_directory_path() / "uwbloc_bench_vs_mrpt";
@@ -50,13 +160,12 @@ int main(int argc, char** argv) {
 
   std::printf("MRPT UWB demo, %d particles, start box GT +- 0.5 m / +- 20 deg, %d runs each\n",
               particles, runs);
-  std::printf("%-28s %8s %8s %8s %8s %10s\n", "method", "rmse_x", "rmse_y", "rmse_2d", "max_2d",
+  std::printf("%-36s %8s %8s %8s %8s %10s\n", "method", "rmse_x", "rmse_y", "rmse_2d", "max_2d",
               "ms/step");
   // MRPT pf-localization: parse "Step k", "PDF estimation: (x,y,phideg)" and "Done in t ms".
   const std::regex step(R"(Step (\d+)\. Executing)"),
       pdf(R"(PDF estimation: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"), done(R"(Done in ([\d.]+)ms)");
-  double mrpt_rmse = 0, mrpt_x = 0, mrpt_y = 0, mrpt_max = 0, mrpt_ms = 0;
-  int mrpt_ok = 0;
+  Row mrpt;
   for (int r = 0; r < runs; ++r) {
     const std::string cmd = "pf-localization " + (dir / "pf.ini").string() + " > " +
                             (dir / "log.txt").string() + " 2>&1";
@@ -85,22 +194,24 @@ int main(int argc, char** argv) {
         traj.push_back(e);
       }
     }
-    const auto metrics =
-        eval::computeMetrics(eval::associate(traj, ds.ground_truth), traj, ds.ground_truth);
-    mrpt_rmse += metrics.rmse_2d;
-    mrpt_x += metrics.rmse_x;
-    mrpt_y += metrics.rmse_y;
-    mrpt_max += metrics.max_2d;
-    mrpt_ms += n_done ? ms / n_done : 0;
-    ++mrpt_ok;
+    mrpt.add(eval::computeMetrics(eval::associate(traj, ds.ground_truth), traj, ds.ground_truth),
+             n_done ? ms / n_done : 0.0);
   }
-  if (mrpt_ok)
-    std::printf("%-28s %8.3f %8.3f %8.3f %8.3f %10.3f\n", "MRPT pf-localization", mrpt_x / mrpt_ok,
-                mrpt_y / mrpt_ok, mrpt_rmse / mrpt_ok, mrpt_max / mrpt_ok, mrpt_ms / mrpt_ok);
-  const auto ours = eval::evaluateMethod(ds, "lidar-mcl:n=" + std::to_string(particles), runs, 1);
-  std::printf("%-28s %8.3f %8.3f %8.3f %8.3f %10.3f\n",
-              ("uwbloc lidar-mcl:n=" + std::to_string(particles)).c_str(), ours.metrics.rmse_x,
-              ours.metrics.rmse_y, ours.metrics.rmse_2d, ours.metrics.max_2d, ours.ms_per_step);
+  mrpt.print("MRPT pf-localization");
+  printOurs(ds, "lidar-mcl:n=" + std::to_string(particles), runs);
+
+  std::printf("\nRange-only: MRPT ro-localization with its shipped demo configuration\n");
+  runRoLocalization(ds, dir, ro_particles, runs)
+      .print("MRPT ro-localization n=" + std::to_string(ro_particles));
+  if (ro_particles != particles)
+    runRoLocalization(ds, dir, particles, runs)
+        .print("MRPT ro-localization n=" + std::to_string(particles));
+  // ro-localization starts from the start position +- 0.5 m with any heading; ours in the same
+  // box with the heading unknown too (init_theta=180), at both particle counts, then as tracked.
+  printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(ro_particles), runs);
+  printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(particles), runs);
+  printOurs(ds, "uwb-pf:n=" + std::to_string(particles), runs);
+  printOurs(ds, "uwb-ekf", 1);
   std::printf(
       "MRPT's ms/step is its own per-step timer ('Done in'), which excludes rawlog reading; ours "
       "is\n"
