@@ -25,8 +25,13 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   if (params_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
   if (params_.swarm != "none" && params_.swarm != "ibas")
     throw ParamError("parameter 'swarm' must be none or ibas, got '" + params_.swarm + "'");
-  if (params_.ibas_weights != "fitness" && params_.ibas_weights != "sequential" &&
-      params_.ibas_weights != "posterior")
+  if (params_.ibas_weights == "fitness")
+    weights_ = SwarmWeights::kFitness;
+  else if (params_.ibas_weights == "sequential")
+    weights_ = SwarmWeights::kSequential;
+  else if (params_.ibas_weights == "posterior")
+    weights_ = SwarmWeights::kPosterior;
+  else
     throw ParamError("parameter 'ibas_weights' must be fitness, sequential or posterior, got '" +
                      params_.ibas_weights + "'");
   nlos_reason_ = "nlos_" + params_.nlos;
@@ -141,7 +146,7 @@ void PfLocalizer::swarmMove() {
   };
   long evals = 0;
   double best = 0.0;
-  swarm_start_ = swarm_pos_;
+  if (weights_ == SwarmWeights::kPosterior) swarm_start_ = swarm_pos_;
   swarm_.maximize(swarm_pos_, fitness, box, params_.ibas_iterations, params_.ibas_step, pf_.rng(),
                   &best, &evals);
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -179,24 +184,26 @@ void PfLocalizer::swarmMove() {
   } else {
     for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = fitness_at(static_cast<Eigen::Index>(i));
   }
-  if (params_.ibas_weights != "fitness") {
+  if (weights_ != SwarmWeights::kFitness) {
     // Sequential importance weights: the weight each particle carried into this epoch (its
     // history since the last resampling) times the epoch's likelihood.
     for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] += prior_log_w_[i];
   }
-  if (params_.ibas_weights == "posterior") {
+  if (weights_ == SwarmWeights::kPosterior) {
     // And the predicted density's ratio between where the swarm left each particle and where
-    // the motion model put it (the heading only when the swarm moves it).
-    const Eigen::Index dims = params_.ibas_theta ? 3 : 2;
-    const Eigen::MatrixXd info =
-        (predicted_.covariance.topLeftCorner(dims, dims) +
-         1e-6 * Eigen::MatrixXd::Identity(dims, dims))
-            .inverse();
+    // the motion model put it (the heading only when the swarm moves it: otherwise its rows
+    // of the information matrix stay zero).
+    Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+    if (params_.ibas_theta)
+      info = (predicted_.covariance + 1e-6 * Eigen::Matrix3d::Identity()).inverse();
+    else
+      info.topLeftCorner<2, 2>() =
+          (predicted_.covariance.topLeftCorner<2, 2>() + 1e-6 * Eigen::Matrix2d::Identity())
+              .inverse();
     const auto offset = [&](double x, double y, double th) {
-      Eigen::Vector3d d(x - predicted_.mean.x(), y - predicted_.mean.y(),
-                        wrapAngle(th - predicted_.mean.z()));
-      const Eigen::VectorXd dd = d.head(dims);
-      return 0.5 * dd.dot(info * dd);
+      const Eigen::Vector3d d(x - predicted_.mean.x(), y - predicted_.mean.y(),
+                              wrapAngle(th - predicted_.mean.z()));
+      return 0.5 * d.dot(info * d);
     };
     for (size_t i = 0; i < ps.size(); ++i) {
       const auto r = static_cast<Eigen::Index>(i);
@@ -210,9 +217,9 @@ void PfLocalizer::swarmMove() {
 std::optional<PoseEstimate> PfLocalizer::finishEpoch() {
   epoch_open_ = false;
   used_ranges_.clear();
-  if (params_.swarm == "ibas" && params_.ibas_weights != "fitness") {
+  if (params_.swarm == "ibas" && weights_ != SwarmWeights::kFitness) {
     prior_log_w_ = pf_.particles().log_w;
-    if (params_.ibas_weights == "posterior") predicted_ = pf_.estimate();
+    if (weights_ == SwarmWeights::kPosterior) predicted_ = pf_.estimate();
   }
   if (epoch_has_scan_) {
     if (field_->rays() == 0) {

@@ -134,7 +134,8 @@ class PfLocalizer : public UwbEstimator {
   std::vector<AcceptedRange> epoch_ranges_, used_ranges_;
   // PF-IBAS state, kept to avoid allocating per epoch.
   optim::BeetleSwarm swarm_;
-  Eigen::MatrixXd swarm_pos_, swarm_start_;
+  Eigen::MatrixXd swarm_pos_, swarm_start_;  ///< swarm_start_: posterior weights only
+  enum class SwarmWeights { kFitness, kSequential, kPosterior } weights_ = SwarmWeights::kFitness;
   ParticleEstimate predicted_;         ///< the cloud after the motion, before this epoch's data
   std::vector<double> prior_log_w_;    ///< the weights before this epoch's data
   optim::Box swarm_box_;     ///< reused every epoch
