@@ -210,6 +210,10 @@ int main(int argc, char** argv) {
   // box with the heading unknown too (init_theta=180), at both particle counts, then as tracked.
   printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(ro_particles), runs);
   printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(particles), runs);
+  // The wide start handled as MRPT's KLD option would: many particles until the cloud
+  // converges, then the tracking count.
+  printOurs(ds, "uwb-pf:init_theta=180,init_n=3000,n=" + std::to_string(particles), runs);
+  printOurs(ds, "pf-ibas:init_theta=180,init_n=3000", runs);
   printOurs(ds, "uwb-pf:n=" + std::to_string(particles), runs);
   printOurs(ds, "uwb-ekf", 1);
   std::printf(

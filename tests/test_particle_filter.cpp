@@ -38,6 +38,29 @@ TEST_P(Resamplers, KeepTheCountAndAreUnbiased) {
   EXPECT_EQ(copies[3], 0.0) << "a zero-weight particle was drawn";
 }
 
+TEST_P(Resamplers, DrawFewerThanTheyAreGivenWithoutBias) {
+  // Shrinking a wide start: m = 4 draws from n = 10 weights, E[copies of i] = m w_i.
+  const std::vector<double> w{0.30, 0.05, 0.15, 0.0, 0.25, 0.01, 0.09, 0.05, 0.06, 0.04};
+  const size_t n = w.size(), m = 4;
+  auto resampler = makeResampler(GetParam());
+  Rng rng(5);
+  std::vector<int> idx(m);
+  std::vector<double> copies(n, 0.0);
+  const int trials = 8000;
+  for (int t = 0; t < trials; ++t) {
+    ASSERT_TRUE(resampler->selectIndices(w, idx, rng));
+    for (int i : idx) {
+      ASSERT_GE(i, 0);
+      ASSERT_LT(i, static_cast<int>(n));
+      copies[static_cast<size_t>(i)] += 1.0;
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const double se = std::sqrt(m * w[i] * (1 - w[i]) / trials) + 1e-9;
+    EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12) << GetParam() << " " << i;
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(All, Resamplers,
                          ::testing::Values("multinomial", "systematic", "stratified", "residual"));
 
@@ -125,4 +148,31 @@ TEST(LikelihoodField, DistancesAndPeakAtTheTruePose) {
        {Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0, -0.2, 0), Eigen::Vector3d(0, 0, 0.1)})
     EXPECT_GT(at_truth,
               field.logLikelihood(truth.x() + d.x(), truth.y() + d.y(), truth.z() + d.z()));
+}
+
+TEST(ParticleFilter, WideStartShrinksOnceConvergedAndGrowsBackOnReset) {
+  ParticleFilterParams p;
+  p.particles = 50;
+  p.initial_particles = 1000;
+  ParticleFilter pf(p, makeResampler("systematic"), 3);
+  pf.initUniformBox({0, 0, 0}, {2.0, 2.0, M_PI});
+  EXPECT_EQ(pf.particles().size(), 1000u);
+  // A wide cloud: even with degenerate weights it resamples at its own size.
+  pf.weight([](double x, double, double) { return -x * x; });
+  pf.normalizeAndResample();
+  EXPECT_EQ(pf.particles().size(), 1000u);
+  // A sharp measurement of the whole pose: the cloud converges and drops to 50.
+  for (int k = 0; k < 3; ++k) {
+    pf.weight([](double x, double y, double th) {
+      return -(x * x + y * y) / (2 * 0.05 * 0.05) - th * th / (2 * 0.05 * 0.05);
+    });
+    pf.normalizeAndResample();
+  }
+  EXPECT_EQ(pf.particles().size(), 50u);
+  EXPECT_EQ(pf.weights().size(), 50u);
+  // 1000 particles over 4 m x 4 m x 2 pi leave the nearest few some 0.2 m from the truth; the
+  // converged cloud is made of copies of them.
+  EXPECT_LT(pf.estimate().mean.head<2>().norm(), p.converged_xy);
+  pf.initUniformBox({0, 0, 0}, {2.0, 2.0, M_PI});
+  EXPECT_EQ(pf.particles().size(), 1000u);
 }

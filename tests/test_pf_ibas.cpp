@@ -203,3 +203,20 @@ TEST(MrptDemo, GraphReportsItsFrontEndsRejections) {
   EXPECT_EQ(g.range_decisions.size(), f.range_decisions.size());
   EXPECT_EQ(g.swarm_injections, f.swarm_injections);
 }
+
+TEST(MrptDemo, UnknownStartHeadingWithAWideStart) {
+  // Start box +- 0.5 m with any heading (as MRPT's ro-localization demo starts): 3000 particles
+  // until the cloud converges, then the usual count. 10 seeds.
+  const auto& ds = demo();
+  const auto uwb = eval::evaluateMethod(ds, "uwb-pf:init_theta=180,init_n=3000", 10, 1);
+  const auto ibas = eval::evaluateMethod(ds, "pf-ibas:init_theta=180,init_n=3000", 10, 1);
+  const auto narrow = eval::evaluateMethod(ds, "uwb-pf:init_theta=180", 10, 1);
+  std::printf(
+      "[ HEADING  ] any start heading, 10 seeds: uwb-pf init_n=3000 %.4f +- %.4f m, pf-ibas "
+      "init_n=3000 %.4f +- %.4f m; uwb-pf without %.4f +- %.4f m\n",
+      uwb.metrics.rmse_2d, uwb.rmse_2d_std, ibas.metrics.rmse_2d, ibas.rmse_2d_std,
+      narrow.metrics.rmse_2d, narrow.rmse_2d_std);
+  EXPECT_LT(uwb.metrics.rmse_2d, 0.15);
+  EXPECT_LT(ibas.metrics.rmse_2d, 0.12);
+  EXPECT_LT(uwb.metrics.rmse_2d, narrow.metrics.rmse_2d);
+}

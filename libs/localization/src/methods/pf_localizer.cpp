@@ -7,6 +7,17 @@
 
 namespace uwbloc::loc {
 
+namespace {
+ParticleFilterParams filterParams(const PfLocalizerParams& p) {
+  ParticleFilterParams f;
+  f.particles = p.particles;
+  f.ess_threshold = p.ess;
+  f.motion = p.motion;
+  f.initial_particles = p.init_n;
+  return f;
+}
+}  // namespace
+
 PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext& context,
                          bool use_lidar, bool use_uwb)
     : UwbEstimator(params.front, context.anchors),
@@ -14,8 +25,7 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
       context_(context),
       use_lidar_(use_lidar),
       use_uwb_(use_uwb),
-      pf_({params.particles, params.ess, params.motion}, makeResampler(params.resampler),
-          context.seed) {
+      pf_(filterParams(params), makeResampler(params.resampler), context.seed) {
   if (params_.init != "tracking" && params_.init != "global")
     throw ParamError("parameter 'init' must be tracking or global, got '" + params_.init + "'");
   if (params_.nlos != "lidar" && params_.nlos != "raycast" && params_.nlos != "none")
@@ -23,6 +33,7 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
   if (params_.nlos_action != "reject" && params_.nlos_action != "downweight")
     throw ParamError("parameter 'nlos_action' must be reject or downweight");
   if (params_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
+  if (params_.init_n < 0) throw ParamError("parameter 'init_n' must be 0 or more");
   if (params_.swarm != "none" && params_.swarm != "ibas")
     throw ParamError("parameter 'swarm' must be none or ibas, got '" + params_.swarm + "'");
   if (params_.ibas_weights == "fitness")

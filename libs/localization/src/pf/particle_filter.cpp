@@ -24,74 +24,75 @@ void walkCdf(size_t n, Weight weight, size_t count, Target target, int* out) {
   }
 }
 
-// n independent draws from the weights. Sorted uniforms come from normalised cumulative sums of
-// n + 1 exponential spacings, so one pass over the CDF suffices and nothing is allocated: a
-// first pass sums the spacings, a second (same random stream, replayed) places the pointers.
+// m = idx.size() independent draws from the n weights. Sorted uniforms come from normalised
+// cumulative sums of m + 1 exponential spacings, so one pass over the CDF suffices and nothing
+// is allocated: a first pass sums the spacings, a second (same random stream, replayed) places
+// the pointers.
 class Multinomial : public ResamplingStrategy {
  public:
   const char* name() const override { return "multinomial"; }
   bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
-    const size_t n = w.size();
+    const size_t n = w.size(), m = idx.size();
     std::exponential_distribution<double> e(1.0);
     const Rng start = rng;
     double total = 0.0;
-    for (size_t i = 0; i <= n; ++i) total += e(rng);
+    for (size_t i = 0; i <= m; ++i) total += e(rng);
     Rng replay = start;
     e.reset();
     double s = 0.0;
     walkCdf(
-        n, [&](size_t j) { return w[j]; }, n, [&](size_t) { return (s += e(replay)) / total; },
+        n, [&](size_t j) { return w[j]; }, m, [&](size_t) { return (s += e(replay)) / total; },
         idx.data());
     return true;
   }
 };
 
-// One uniform offset, n evenly spaced pointers.
+// One uniform offset, m evenly spaced pointers.
 class Systematic : public ResamplingStrategy {
  public:
   const char* name() const override { return "systematic"; }
   bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
-    const size_t n = w.size();
-    const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / n)(rng);
+    const size_t n = w.size(), m = idx.size();
+    const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / m)(rng);
     walkCdf(
-        n, [&](size_t j) { return w[j]; }, n,
-        [&](size_t i) { return u0 + static_cast<double>(i) / n; }, idx.data());
+        n, [&](size_t j) { return w[j]; }, m,
+        [&](size_t i) { return u0 + static_cast<double>(i) / m; }, idx.data());
     return true;
   }
 };
 
-// One uniform draw inside each of n equal strata.
+// One uniform draw inside each of m equal strata.
 class Stratified : public ResamplingStrategy {
  public:
   const char* name() const override { return "stratified"; }
   bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
-    const size_t n = w.size();
+    const size_t n = w.size(), m = idx.size();
     std::uniform_real_distribution<double> u(0.0, 1.0);
     walkCdf(
-        n, [&](size_t j) { return w[j]; }, n,
-        [&](size_t i) { return (static_cast<double>(i) + u(rng)) / n; }, idx.data());
+        n, [&](size_t j) { return w[j]; }, m,
+        [&](size_t i) { return (static_cast<double>(i) + u(rng)) / m; }, idx.data());
     return true;
   }
 };
 
-// floor(n w_i) copies of each particle, the remainder drawn systematically from the residuals.
+// floor(m w_i) copies of each particle, the remainder drawn systematically from the residuals.
 class Residual : public ResamplingStrategy {
  public:
   const char* name() const override { return "residual"; }
   bool selectIndices(const std::vector<double>& w, std::vector<int>& idx, Rng& rng) override {
-    const size_t n = w.size();
+    const size_t n = w.size(), m = idx.size();
     size_t k = 0;
     double residual_total = 0.0;
     for (size_t i = 0; i < n; ++i) {
-      const auto copies = static_cast<size_t>(std::floor(n * w[i]));
-      for (size_t c = 0; c < copies && k < n; ++c) idx[k++] = static_cast<int>(i);
-      residual_total += n * w[i] - static_cast<double>(copies);
+      const auto copies = static_cast<size_t>(std::floor(m * w[i]));
+      for (size_t c = 0; c < copies && k < m; ++c) idx[k++] = static_cast<int>(i);
+      residual_total += m * w[i] - static_cast<double>(copies);
     }
-    const size_t rest = n - k;
+    const size_t rest = m - k;
     if (rest == 0) return true;
     const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / rest)(rng);
     walkCdf(
-        n, [&](size_t m) { return (n * w[m] - std::floor(n * w[m])) / residual_total; }, rest,
+        n, [&](size_t j) { return (m * w[j] - std::floor(m * w[j])) / residual_total; }, rest,
         [&](size_t i) { return u0 + static_cast<double>(i) / rest; }, idx.data() + k);
     return true;
   }
@@ -111,14 +112,26 @@ std::unique_ptr<ResamplingStrategy> makeResampler(const std::string& name) {
 ParticleFilter::ParticleFilter(const ParticleFilterParams& params,
                                std::unique_ptr<ResamplingStrategy> resampler, uint64_t seed)
     : params_(params), resampler_(std::move(resampler)), rng_(seed) {
-  const auto n = static_cast<size_t>(std::max(1, params_.particles));
+  prepareStart();
+}
+
+void ParticleFilter::prepareStart() {
+  const auto n = static_cast<size_t>(std::max({1, params_.particles, params_.initial_particles}));
   set_.resize(n);
   scratch_.resize(n);
   w_.assign(n, 1.0 / n);
   indices_.assign(n, 0);
 }
 
+bool ParticleFilter::readyToShrink() const {
+  if (set_.size() <= static_cast<size_t>(std::max(1, params_.particles))) return false;
+  const Eigen::Matrix3d c = estimate().covariance;
+  return std::sqrt(std::max(c(2, 2), 0.0)) < params_.converged_theta &&
+         std::sqrt(std::max(c(0, 0) + c(1, 1), 0.0)) < params_.converged_xy;
+}
+
 void ParticleFilter::initGaussian(const Eigen::Vector3d& pose, const Eigen::Vector3d& sigma) {
+  prepareStart();
   std::normal_distribution<double> g(0.0, 1.0);
   for (size_t i = 0; i < set_.size(); ++i) {
     set_.x[i] = pose.x() + sigma.x() * g(rng_);
@@ -130,6 +143,7 @@ void ParticleFilter::initGaussian(const Eigen::Vector3d& pose, const Eigen::Vect
 }
 
 void ParticleFilter::initUniformBox(const Eigen::Vector3d& pose, const Eigen::Vector3d& half) {
+  prepareStart();
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (size_t i = 0; i < set_.size(); ++i) {
     set_.x[i] = pose.x() + half.x() * u(rng_);
@@ -142,6 +156,7 @@ void ParticleFilter::initUniformBox(const Eigen::Vector3d& pose, const Eigen::Ve
 
 void ParticleFilter::initUniform(const std::vector<Eigen::Vector2d>& free_cells, double cell) {
   if (free_cells.empty()) throw std::invalid_argument("global initialisation: no free cells");
+  prepareStart();
   std::uniform_int_distribution<size_t> pick(0, free_cells.size() - 1);
   std::uniform_real_distribution<double> jitter(-0.5 * cell, 0.5 * cell), ang(-M_PI, M_PI);
   for (size_t i = 0; i < set_.size(); ++i) {
@@ -204,10 +219,19 @@ double ParticleFilter::normalize() {
 }
 
 bool ParticleFilter::normalizeAndResample() {
-  const size_t n = set_.size();
   normalize();
-  if (last_ess_ >= params_.ess_threshold * static_cast<double>(n)) return false;
+  // The start's extra particles go as soon as the cloud has converged; otherwise resample to
+  // the same count when the weights have degenerated.
+  const bool shrink = readyToShrink();
+  size_t n = set_.size();
+  if (!shrink && last_ess_ >= params_.ess_threshold * static_cast<double>(n)) return false;
+  if (shrink) n = static_cast<size_t>(std::max(1, params_.particles));
+  indices_.resize(n);  // never grows past the start's size: no allocation
   if (!resampler_->selectIndices(w_, indices_, rng_)) return true;
+  scratch_.x.resize(n);
+  scratch_.y.resize(n);
+  scratch_.theta.resize(n);
+  scratch_.log_w.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const auto j = static_cast<size_t>(indices_[i]);
     scratch_.x[i] = set_.x[j];
@@ -216,6 +240,7 @@ bool ParticleFilter::normalizeAndResample() {
     scratch_.log_w[i] = 0.0;
   }
   std::swap(set_, scratch_);
+  w_.resize(n);
   std::fill(w_.begin(), w_.end(), 1.0 / n);
   ++resamples_;
   return true;

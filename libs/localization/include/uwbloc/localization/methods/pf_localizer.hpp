@@ -40,6 +40,7 @@ struct PfLocalizerParams {
   std::string init = "tracking";       ///< tracking (box around the start pose) or global
   double init_xy = 0.5;                ///< tracking box half-width [m]
   double init_theta_deg = 20.0;        ///< tracking box half-width [deg]
+  int init_n = 0;  ///< particles at the start, kept until the cloud converges (0: n)
   RangeFrontEndParams front;           ///< UWB range checks; sigma is the range likelihood's std
   std::string nlos = "lidar";          ///< NLOS test: lidar, raycast or none
   double nlos_k = 3.0;                 ///< gate width in standard deviations
@@ -78,6 +79,9 @@ struct PfLocalizerParams {
     v("init", init, "tracking or global");
     v("init_xy", init_xy, "tracking: half-width of the start box [m]");
     v("init_theta", init_theta_deg, "tracking: half-width of the start box [deg]");
+    v("init_n", init_n,
+      "particles at the start (0: n), down to n once the heading std < 10 deg and the planar "
+      "std < 0.3 m (for an unknown start heading or global localisation)");
     front.visit(v);
     v("nlos", nlos, "NLOS test on UWB ranges: lidar, raycast or none");
     v("nlos_k", nlos_k, "NLOS gate width [std]");

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <random>
@@ -49,8 +50,8 @@ class ResamplingStrategy {
   virtual ~ResamplingStrategy() = default;
   virtual const char* name() const = 0;
   /// Called when the filter decides to resample. `weights` are normalised. Classic strategies
-  /// fill `indices` with n draws and the filter copies; a strategy that moves particles itself
-  /// (and then returns false) may evaluate `fitness`.
+  /// fill `indices` (its size is the number to draw, which may be smaller than the number of
+  /// weights) and the filter copies; a strategy that moves particles itself returns false.
   virtual bool selectIndices(const std::vector<double>& weights, std::vector<int>& indices,
                              Rng& rng) = 0;
 };
@@ -62,6 +63,13 @@ struct ParticleFilterParams {
   int particles = 300;
   double ess_threshold = 0.5;  ///< resample when ESS / N falls below this
   MotionNoise motion;
+  /// A wide start (an unknown heading, global localisation) needs more particles than tracking
+  /// does: when larger than `particles`, the filter starts with this many and resamples down to
+  /// `particles` once the cloud has converged (heading std below `converged_theta` and planar
+  /// std below `converged_xy`).
+  int initial_particles = 0;
+  double converged_theta = 10.0 * M_PI / 180.0;  ///< [rad]
+  double converged_xy = 0.3;                     ///< [m]
 };
 
 struct ParticleEstimate {
@@ -104,6 +112,11 @@ class ParticleFilter {
   ParticleFilterParams params_;
   std::unique_ptr<ResamplingStrategy> resampler_;
   Rng rng_;
+  /// Sizes every array for the start (the larger of `particles` and `initial_particles`).
+  void prepareStart();
+  /// True while the start's extra particles are still there and the cloud has converged.
+  bool readyToShrink() const;
+
   ParticleSet set_, scratch_;
   std::vector<double> w_;
   std::vector<int> indices_;
