@@ -97,7 +97,8 @@ std::string formatMetricsJson(const data::Dataset& dataset,
         e["rejected_by_anchor"][std::to_string(anchor)][reason] = count;
     e["accepted_ranges"] = m.accepted_ranges;
     e["resets"] = m.resets;
-    e["swarm_injections"] = m.swarm_injections;
+    e["events"] = nlohmann::json::object();
+    for (const auto& [name, count] : m.events) e["events"][name] = count;
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
     for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
@@ -207,10 +208,12 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
     }
     out << "\n";
   }
-  for (const auto& m : methods)
-    if (m.swarm_injections > 0)
-      out << "  " << m.spec << " swarm: " << m.swarm_injections
-          << " diversity injections (spread below min_spread)\n";
+  for (const auto& m : methods) {
+    if (m.events.empty()) continue;
+    out << "  " << m.spec << " events:";
+    for (const auto& [name, count] : m.events) out << " " << name << "=" << count;
+    out << "\n";
+  }
   return out.str();
 }
 

@@ -117,7 +117,7 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
       s.rejected_by_anchor = run.statistics.rejected_by_anchor;
       s.accepted_ranges = run.statistics.accepted_ranges;
       s.resets = run.statistics.resets;
-      s.swarm_injections = run.statistics.swarm_injections;
+      s.events = run.statistics.events;
       s.range_decisions = run.statistics.range_decisions;
       s.artifacts = run.artifacts;
     }

@@ -139,7 +139,7 @@ void GraphSmoother::mergeFrontStatistics() {
   stats_.range_decisions.insert(stats_.range_decisions.end(), f.range_decisions.begin(),
                                 f.range_decisions.end());
   stats_.resets += f.resets;
-  stats_.swarm_injections += f.swarm_injections;
+  for (const auto& [name, count] : f.events) stats_.events["front:" + name] += count;
 }
 
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {

@@ -34,6 +34,7 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
     throw ParamError("parameter 'nlos_action' must be reject or downweight");
   if (params_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
   if (params_.init_n < 0) throw ParamError("parameter 'init_n' must be 0 or more");
+  if (params_.nlos_suspend < 0) throw ParamError("parameter 'nlos_suspend' must be 0 or more");
   if (params_.swarm != "none" && params_.swarm != "ibas")
     throw ParamError("parameter 'swarm' must be none or ibas, got '" + params_.swarm + "'");
   if (params_.ibas_weights == "fitness")
@@ -62,6 +63,10 @@ PfLocalizer::PfLocalizer(const PfLocalizerParams& params, const EstimatorContext
 
 void PfLocalizer::reset() { initialise(); }
 
+bool PfLocalizer::nlosSuspended() const {
+  return params_.nlos_suspend > 0 && nlos_streak_ >= params_.nlos_suspend;
+}
+
 std::vector<std::pair<std::string, std::string>> PfLocalizer::artifacts() const {
   std::vector<std::pair<std::string, std::string>> out;
   if (params_.landmarks && !landmark_map_.landmarks().empty())
@@ -71,6 +76,7 @@ std::vector<std::pair<std::string, std::string>> PfLocalizer::artifacts() const 
 }
 
 void PfLocalizer::initialise() {
+  nlos_streak_ = 0;
   if (params_.init == "tracking") {
     pf_.initUniformBox(*context_.initial_pose,
                        {params_.init_xy, params_.init_xy, params_.init_theta_deg * M_PI / 180.0});
@@ -107,8 +113,10 @@ void PfLocalizer::updateRange(const AcceptedRange& r, const ParticleEstimate& e)
     dec.flag_raycast = context_.map->segmentBlocked(tag_world.head<2>(), r.anchor.head<2>(),
                                                     1.5 * context_.map->resolution());
   }
-  const bool flagged = (params_.nlos == "lidar" && dec.flag_lidar) ||
-                       (params_.nlos == "raycast" && dec.flag_raycast);
+  const bool failed = (params_.nlos == "lidar" && dec.flag_lidar) ||
+                      (params_.nlos == "raycast" && dec.flag_raycast);
+  epoch_flagged_ += failed;
+  const bool flagged = failed && !nlosSuspended();
   double sig = sigma;
   if (flagged) {
     countRejection(nlos_reason_, dec.anchor_id);
@@ -191,7 +199,7 @@ void PfLocalizer::swarmMove() {
       ps.y[i] += g(pf_.rng());
       ps.log_w[i] = epochLogLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
     }
-    ++stats_.swarm_injections;
+    ++stats_.events["swarm_diversity_injection"];
   } else {
     for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = fitness_at(static_cast<Eigen::Index>(i));
   }
@@ -244,7 +252,11 @@ std::optional<PoseEstimate> PfLocalizer::finishEpoch() {
     // The NLOS test uses the estimate after the motion and the LiDAR update.
     pf_.normalize();
     const ParticleEstimate e = pf_.estimate();
+    epoch_flagged_ = 0;
+    if (nlosSuspended()) ++stats_.events["nlos_test_suspended"];
     for (const auto& r : epoch_ranges_) updateRange(r, e);
+    const auto ranges = static_cast<int>(epoch_ranges_.size());
+    nlos_streak_ = epoch_flagged_ >= 2 && 2 * epoch_flagged_ > ranges ? nlos_streak_ + 1 : 0;
   }
   if (params_.swarm == "ibas") {
     pf_.normalize();

@@ -51,7 +51,7 @@ struct MethodSummary {
   std::map<int, std::map<std::string, long>> rejected_by_anchor;
   long accepted_ranges = 0;
   long resets = 0;
-  long swarm_injections = 0;  ///< PF-IBAS diversity injections (first run)
+  std::map<std::string, long> events;  ///< non-rejection events by name (first run)
   std::vector<loc::ParamInfo> parameters;
   std::vector<loc::PoseEstimate> trajectory;        ///< of the first run
   std::vector<loc::RangeDecision> range_decisions;  ///< of the first run (NLOS-judging methods)

@@ -41,7 +41,9 @@ struct EstimatorStatistics {
   std::map<int, std::map<std::string, long>> rejected_by_anchor;  ///< anchor -> reason -> count
   long accepted_ranges = 0;
   long resets = 0;  ///< divergence re-initialisations
-  long swarm_injections = 0;  ///< PF-IBAS: jitter injected into a collapsed swarm (not a rejection)
+  /// Things the method did that are not rejections, by name: PF-IBAS's diversity injections
+  /// ("swarm_diversity_injection"), epochs whose NLOS test was suspended ("nlos_test_suspended").
+  std::map<std::string, long> events;
 };
 
 /// What a method may know besides the events: anchors, the start pose (for tracking and dead

@@ -46,6 +46,11 @@ struct PfLocalizerParams {
   double nlos_k = 3.0;                 ///< gate width in standard deviations
   std::string nlos_action = "reject";  ///< reject or downweight
   double downweight = 5.0;             ///< sigma factor for down-weighted ranges
+  /// The NLOS test judges ranges against the filter's pose; when most of an epoch's ranges (at
+  /// least 2) fail it this many epochs in a row, the pose is more likely wrong than the ranges,
+  /// and the test is suspended (the ranges are used) until they agree with the pose again.
+  /// 0: never suspend.
+  int nlos_suspend = 2;
   std::string swarm = "none";          ///< none (resampling) or ibas (PF-IBAS)
   int ibas_iterations = 5;             ///< IBAS iterations per epoch
   double ibas_step = 0.05;             ///< IBAS initial step [m, rad]
@@ -87,6 +92,9 @@ struct PfLocalizerParams {
     v("nlos_k", nlos_k, "NLOS gate width [std]");
     v("nlos_action", nlos_action, "reject or downweight flagged ranges");
     v("downweight", downweight, "sigma factor for down-weighted ranges");
+    v("nlos_suspend", nlos_suspend,
+      "suspend the NLOS test after this many epochs in a row in which most ranges (>= 2) fail "
+      "it (0: never)");
     v("swarm", swarm, "none (resampling) or ibas (PF-IBAS: the swarm moves the particles)");
     v("ibas_iters", ibas_iterations, "IBAS iterations per epoch");
     v("ibas_step", ibas_step, "IBAS initial step [m, rad]");
@@ -123,6 +131,8 @@ class PfLocalizer : public UwbEstimator {
   void updateRange(const AcceptedRange& r, const ParticleEstimate& e);
   double epochLogLikelihood(double x, double y, double theta) const;
   void swarmMove();
+  /// True while the NLOS test is suspended (see PfLocalizerParams::nlos_suspend).
+  bool nlosSuspended() const;
 
   PfLocalizerParams params_;
   EstimatorContext context_;
@@ -144,6 +154,8 @@ class PfLocalizer : public UwbEstimator {
   std::vector<double> prior_log_w_;    ///< the weights before this epoch's data
   optim::Box swarm_box_;     ///< reused every epoch
   std::string nlos_reason_;  ///< "nlos_<test>", built once
+  int epoch_flagged_ = 0;    ///< ranges of the open epoch that failed the NLOS test
+  int nlos_streak_ = 0;      ///< epochs in a row in which most ranges failed it
   std::string spread_log_;   ///< "t,spread_xy" rows (PF-IBAS)
 };
 
