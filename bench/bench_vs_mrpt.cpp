@@ -98,45 +98,43 @@ void printOurs(const data::Dataset& ds, const std::string& spec, int runs) {
               ours.ms_per_step);
 }
 
-// MRPT ro-localization: "RAWLOG_ENTRY: e" (e = 2k + 1 after step k's action and observations;
-// 0 for the first), then "Done! in t ms" and "PDF est: (x,y,phideg)".
-Row runRoLocalization(const data::Dataset& ds, const fs::path& dir, int particles, int runs) {
+// How to read one MRPT app's console output: a line naming the step, the per-step timer and the
+// pose estimate in degrees, and the pose of our frame's origin in the app's frame.
+struct MrptLog {
+  std::regex step, done, pdf;
+  long (*step_index)(long);  ///< from the number the step line carries to our step index
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+};
+
+// Runs `command` (which writes `log_path`) `runs` times and scores every run.
+Row runMrpt(const data::Dataset& ds, const std::string& command, const fs::path& log_path,
+            const MrptLog& fmt, int runs) {
   Row row;
-  Eigen::Vector3d origin;
-  const std::string cfg = roConfig(particles, origin);
-  const Eigen::Rotation2Dd to_ours(-origin.z());
-  if (cfg.empty()) {
-    std::fprintf(stderr, "MRPT's ro-localization demo configuration is missing (mrpt-common)\n");
-    return row;
-  }
-  data::writeFileAtomic((dir / "ro.ini").string(), cfg);
-  const std::regex entry(R"(RAWLOG_ENTRY: (\d+))"),
-      pdf(R"(PDF est: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"), done(R"(Done! in ([\d.]+)ms)");
+  const Eigen::Rotation2Dd to_ours(-fmt.origin.z());
   for (int r = 0; r < runs; ++r) {
-    const std::string cmd = "cd " + dir.string() + " && ro-localization ro.ini > ro_log.txt 2>&1";
-    if (std::system(cmd.c_str()) != 0) {
-      std::fprintf(stderr, "ro-localization failed (is mrpt-apps installed?); see %s\n",
-                   (dir / "ro_log.txt").c_str());
+    if (std::system(command.c_str()) != 0) {
+      std::fprintf(stderr, "'%s' failed (is mrpt-apps installed?); see %s\n", command.c_str(),
+                   log_path.c_str());
       break;
     }
-    std::ifstream log(dir / "ro_log.txt");
+    std::ifstream log(log_path);
     std::vector<loc::PoseEstimate> traj;
     double ms = 0;
     long n_done = 0, k = -1;
     for (std::string line; std::getline(log, line);) {
       std::smatch m;
-      if (std::regex_search(line, m, entry)) k = std::stol(m[1]) / 2;
-      if (std::regex_search(line, m, done)) {
+      if (std::regex_search(line, m, fmt.step)) k = fmt.step_index(std::stol(m[1]));
+      if (std::regex_search(line, m, fmt.done)) {
         ms += std::stod(m[1]);
         ++n_done;
       }
-      if (std::regex_search(line, m, pdf) && k >= 0 &&
+      if (std::regex_search(line, m, fmt.pdf) && k >= 0 &&
           static_cast<size_t>(k) < ds.step_times.size()) {
         loc::PoseEstimate e;
         e.t = ds.step_times[static_cast<size_t>(k)];
         const Eigen::Vector2d p(std::stod(m[1]), std::stod(m[2]));
-        e.pose << to_ours * (p - origin.head<2>()),
-            std::stod(m[3]) * M_PI / 180.0 - origin.z();
+        e.pose << to_ours * (p - fmt.origin.head<2>()),
+            std::stod(m[3]) * M_PI / 180.0 - fmt.origin.z();
         traj.push_back(e);
       }
     }
@@ -144,6 +142,22 @@ Row runRoLocalization(const data::Dataset& ds, const fs::path& dir, int particle
             n_done ? ms / n_done : 0.0);
   }
   return row;
+}
+
+// MRPT ro-localization: "RAWLOG_ENTRY: e" (e = 2k + 1 after step k's action and observations;
+// 0 for the first), then "Done! in t ms" and "PDF est: (x,y,phideg)", in the beacons' frame.
+Row runRoLocalization(const data::Dataset& ds, const fs::path& dir, int particles, int runs) {
+  MrptLog fmt{std::regex(R"(RAWLOG_ENTRY: (\d+))"), std::regex(R"(Done! in ([\d.]+)ms)"),
+              std::regex(R"(PDF est: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"),
+              [](long entry) { return entry / 2; }};
+  const std::string cfg = roConfig(particles, fmt.origin);
+  if (cfg.empty()) {
+    std::fprintf(stderr, "MRPT's ro-localization demo configuration is missing (mrpt-common)\n");
+    return {};
+  }
+  data::writeFileAtomic((dir / "ro.ini").string(), cfg);
+  return runMrpt(ds, "cd " + dir.string() + " && ro-localization ro.ini > ro_log.txt 2>&1",
+                 dir / "ro_log.txt", fmt, runs);
 }
 
 }  // namespace
@@ -162,41 +176,14 @@ int main(int argc, char** argv) {
               particles, runs);
   std::printf("%-36s %8s %8s %8s %8s %10s\n", "method", "rmse_x", "rmse_y", "rmse_2d", "max_2d",
               "ms/step");
-  // MRPT pf-localization: parse "Step k", "PDF estimation: (x,y,phideg)" and "Done in t ms".
-  const std::regex step(R"(Step (\d+)\. Executing)"),
-      pdf(R"(PDF estimation: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"), done(R"(Done in ([\d.]+)ms)");
-  Row mrpt;
-  for (int r = 0; r < runs; ++r) {
-    const std::string cmd = "pf-localization " + (dir / "pf.ini").string() + " > " +
-                            (dir / "log.txt").string() + " 2>&1";
-    if (std::system(cmd.c_str()) != 0) {
-      std::fprintf(stderr, "pf-localization failed (is mrpt-apps installed?); see %s\n",
-                   (dir / "log.txt").c_str());
-      break;
-    }
-    std::ifstream log(dir / "log.txt");
-    std::vector<loc::PoseEstimate> traj;
-    double ms = 0;
-    long n_done = 0;
-    long k = -1;
-    for (std::string line; std::getline(log, line);) {
-      std::smatch m;
-      if (std::regex_search(line, m, step)) k = std::stol(m[1]);
-      if (std::regex_search(line, m, done)) {
-        ms += std::stod(m[1]);
-        ++n_done;
-      }
-      if (std::regex_search(line, m, pdf) && k >= 0 &&
-          static_cast<size_t>(k) < ds.step_times.size()) {
-        loc::PoseEstimate e;
-        e.t = ds.step_times[static_cast<size_t>(k)];
-        e.pose << std::stod(m[1]), std::stod(m[2]), std::stod(m[3]) * M_PI / 180.0;
-        traj.push_back(e);
-      }
-    }
-    mrpt.add(eval::computeMetrics(eval::associate(traj, ds.ground_truth), traj, ds.ground_truth),
-             n_done ? ms / n_done : 0.0);
-  }
+  // MRPT pf-localization: "Step k", "Done in t ms" and "PDF estimation: (x,y,phideg)".
+  const MrptLog pf_log{std::regex(R"(Step (\d+)\. Executing)"), std::regex(R"(Done in ([\d.]+)ms)"),
+                       std::regex(R"(PDF estimation: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"),
+                       [](long step) { return step; }};
+  const Row mrpt = runMrpt(
+      ds, "pf-localization " + (dir / "pf.ini").string() + " > " + (dir / "log.txt").string() +
+              " 2>&1",
+      dir / "log.txt", pf_log, runs);
   mrpt.print("MRPT pf-localization");
   printOurs(ds, "lidar-mcl:n=" + std::to_string(particles), runs);
 
@@ -209,7 +196,8 @@ int main(int argc, char** argv) {
   // ro-localization starts from the start position +- 0.5 m with any heading; ours in the same
   // box with the heading unknown too (init_theta=180), at both particle counts, then as tracked.
   printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(ro_particles), runs);
-  printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(particles), runs);
+  if (ro_particles != particles)
+    printOurs(ds, "uwb-pf:init_theta=180,n=" + std::to_string(particles), runs);
   // The wide start handled as MRPT's KLD option would: many particles until the cloud
   // converges, then the tracking count.
   printOurs(ds, "uwb-pf:init_theta=180,init_n=3000,n=" + std::to_string(particles), runs);

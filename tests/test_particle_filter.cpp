@@ -2,6 +2,7 @@
 // and the likelihood field.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
@@ -9,56 +10,44 @@
 
 using namespace uwbloc::loc;
 
-class Resamplers : public ::testing::TestWithParam<std::string> {};
+class Resamplers : public ::testing::TestWithParam<std::string> {
+ protected:
+  const std::vector<double> w{0.30, 0.05, 0.15, 0.0, 0.25, 0.01, 0.09, 0.05, 0.06, 0.04};
+
+  // Draws m indices from `w` `trials` times with the resampler under test; checks every index
+  // is in range and that E[copies of i] = m w_i within 4.5 standard errors (the multinomial
+  // variance m w (1 - w) bounds the other schemes'). Returns the copies of each particle.
+  std::vector<double> expectUnbiased(size_t m, int trials, uint64_t seed) {
+    auto resampler = makeResampler(GetParam());
+    Rng rng(seed);
+    std::vector<int> idx(m);
+    std::vector<double> copies(w.size(), 0.0);
+    for (int t = 0; t < trials; ++t) {
+      std::fill(idx.begin(), idx.end(), -1);
+      EXPECT_TRUE(resampler->selectIndices(w, idx, rng));
+      for (int i : idx) {
+        EXPECT_GE(i, 0);
+        EXPECT_LT(i, static_cast<int>(w.size()));
+        if (i >= 0 && i < static_cast<int>(w.size())) copies[static_cast<size_t>(i)] += 1.0;
+      }
+    }
+    for (size_t i = 0; i < w.size(); ++i) {
+      const double se = std::sqrt(m * w[i] * (1 - w[i]) / trials) + 1e-9;
+      EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12) << GetParam() << " " << i;
+    }
+    return copies;
+  }
+};
 
 TEST_P(Resamplers, KeepTheCountAndAreUnbiased) {
-  // E[copies of particle i] = n w_i for every unbiased scheme. 4000 seeded trials.
-  const std::vector<double> w{0.30, 0.05, 0.15, 0.0, 0.25, 0.01, 0.09, 0.05, 0.06, 0.04};
-  const size_t n = w.size();
-  auto resampler = makeResampler(GetParam());
-  Rng rng(17);
-  std::vector<int> idx(n);
-  std::vector<double> copies(n, 0.0);
-  const int trials = 4000;
-  for (int t = 0; t < trials; ++t) {
-    std::fill(idx.begin(), idx.end(), -1);
-    ASSERT_TRUE(resampler->selectIndices(w, idx, rng));
-    for (int i : idx) {
-      ASSERT_GE(i, 0);
-      ASSERT_LT(i, static_cast<int>(n));
-      copies[static_cast<size_t>(i)] += 1.0;
-    }
-  }
-  for (size_t i = 0; i < n; ++i) {
-    const double mean = copies[i] / trials, expected = n * w[i];
-    // Multinomial variance n w (1 - w) bounds the others'; 4.5 standard errors.
-    const double se = std::sqrt(n * w[i] * (1 - w[i]) / trials) + 1e-9;
-    EXPECT_NEAR(mean, expected, 4.5 * se + 1e-12) << GetParam() << " particle " << i;
-  }
+  // n draws from n weights, 4000 seeded trials; a zero-weight particle is never drawn.
+  const auto copies = expectUnbiased(w.size(), 4000, 17);
   EXPECT_EQ(copies[3], 0.0) << "a zero-weight particle was drawn";
 }
 
 TEST_P(Resamplers, DrawFewerThanTheyAreGivenWithoutBias) {
-  // Shrinking a wide start: m = 4 draws from n = 10 weights, E[copies of i] = m w_i.
-  const std::vector<double> w{0.30, 0.05, 0.15, 0.0, 0.25, 0.01, 0.09, 0.05, 0.06, 0.04};
-  const size_t n = w.size(), m = 4;
-  auto resampler = makeResampler(GetParam());
-  Rng rng(5);
-  std::vector<int> idx(m);
-  std::vector<double> copies(n, 0.0);
-  const int trials = 8000;
-  for (int t = 0; t < trials; ++t) {
-    ASSERT_TRUE(resampler->selectIndices(w, idx, rng));
-    for (int i : idx) {
-      ASSERT_GE(i, 0);
-      ASSERT_LT(i, static_cast<int>(n));
-      copies[static_cast<size_t>(i)] += 1.0;
-    }
-  }
-  for (size_t i = 0; i < n; ++i) {
-    const double se = std::sqrt(m * w[i] * (1 - w[i]) / trials) + 1e-9;
-    EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12) << GetParam() << " " << i;
-  }
+  // Shrinking a wide start: 4 draws from 10 weights, 8000 seeded trials.
+  expectUnbiased(4, 8000, 5);
 }
 
 INSTANTIATE_TEST_SUITE_P(All, Resamplers,
