@@ -3,15 +3,21 @@
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "uwbloc/dataset/pose_graph_file.hpp"
 #include "uwbloc/localization/events.hpp"
 #include "uwbloc/localization/graph/range_graph.hpp"
+#include "graph/cost_functions.hpp"
 
 using namespace uwbloc;
 using namespace uwbloc::loc::graph;
+namespace loc = uwbloc::loc;
+namespace graph = uwbloc::loc::graph;
 
 namespace {
 
@@ -97,7 +103,7 @@ TEST(GraphCosts, JacobiansMatchNumeric) {
   std::vector<const ceres::Manifold*> m1{&pose_manifold, nullptr, nullptr};
   checkGradients(range.get(), {pose, anchor, bias}, &m1, "range");
   std::unique_ptr<ceres::CostFunction> rel(
-      RelativePoseCost::Create({0.3, 0.1, 0.2}, {0.05, 0.05, 0.02}));
+      RelativePoseCost::Create(Eigen::Vector3d(0.3, 0.1, 0.2), Eigen::Vector3d(0.05, 0.05, 0.02)));
   std::vector<const ceres::Manifold*> m2{&pose_manifold, &pose_manifold};
   checkGradients(rel.get(), {pose, pose2}, &m2, "relative pose across +-pi");
   double landmark[2] = {3.0, -2.0};
@@ -119,11 +125,50 @@ TEST(GraphCosts, JacobiansMatchNumeric) {
   EXPECT_NEAR(r, 1.0, 1e-12);
 }
 
+TEST(GraphCosts, RelativePoseWithAFullInformationMatrix) {
+  // r^T r must equal e^T Omega e for a non-diagonal Omega, and the Jacobians must still match.
+  Eigen::Matrix3d omega;
+  omega << 400, 50, 10, 50, 300, -20, 10, -20, 900;
+  const Eigen::Matrix3d l = omega.llt().matrixU();
+  const Eigen::Vector3d delta(0.3, 0.1, 0.2);
+  std::unique_ptr<ceres::CostFunction> rel(RelativePoseCost::Create(delta, l));
+  double a[3] = {0.0, 0.0, 0.0}, b[3] = {0.35, 0.05, 0.25}, r[3];
+  const double* ps[2] = {a, b};
+  rel->Evaluate(ps, r, nullptr);
+  const Eigen::Vector3d e(0.05, -0.05, 0.05);  // b - a in a's frame, minus delta
+  EXPECT_NEAR(Eigen::Vector3d(r[0], r[1], r[2]).squaredNorm(), e.dot(omega * e), 1e-9);
+  const ceres::AutoDiffManifold<PosePlus, 3, 3> pose_manifold;
+  std::vector<const ceres::Manifold*> m{&pose_manifold, &pose_manifold};
+  checkGradients(rel.get(), {a, b}, &m, "relative pose, full information");
+}
+
+TEST(PoseGraph, ToroAndG2oStoreTheInformationInTheirOwnOrders) {
+  // The same matrix [[11 12 13] [12 22 23] [13 23 33]] (values chosen positive definite) in
+  // both text forms: TORO's I11 I12 I22 I33 I13 I23 and g2o's I11 I12 I13 I22 I23 I33.
+  const auto dir = std::filesystem::temp_directory_path() / "uwbloc_pose_graph_orders";
+  std::filesystem::create_directories(dir);
+  const auto toro = (dir / "toro.graph").string(), g2o = (dir / "g2o.graph").string();
+  std::ofstream(toro) << "VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\n"
+                         "EDGE2 0 1 1 0 0 100 5 80 50 2 -3\n";
+  std::ofstream(g2o) << "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\n"
+                        "EDGE_SE2 0 1 1 0 0 100 5 2 80 -3 50\n";
+  Eigen::Matrix3d expected;
+  expected << 100, 5, 2, 5, 80, -3, 2, -3, 50;
+  for (const auto& path : {toro, g2o}) {
+    const auto g = uwbloc::data::readPoseGraph2D(path);
+    ASSERT_EQ(g.edges.size(), 1u) << path;
+    EXPECT_TRUE(g.edges[0].information.isApprox(expected)) << path << "\n"
+                                                            << g.edges[0].information;
+  }
+  std::ofstream(g2o) << "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0 1 5 0 1 0 1\n";
+  EXPECT_THROW(uwbloc::data::readPoseGraph2D(g2o), std::exception);  // not positive definite
+}
+
 TEST(RangeSlam, RecoversPosesWithFixedAnchors) {
   const Synthetic s(7, 0.0);
   RangeGraph g = s.graph(s.anchors);
   RangeGraphParams params;
-  params.loss = "none";
+  params.loss = graph::RobustLoss::kNone;
   params.odometry_sigma = {0.02, 0.02, 0.005};
   g.build(params);
   const auto sol = g.solve();
@@ -182,7 +227,7 @@ TEST(RangeSlam, SelfCalibratesAnchors) {
     start[i].position += Eigen::Vector3d(g0(rng), g0(rng), 0.0);
   RangeGraph g = s.graph(start);
   RangeGraphParams params;
-  params.loss = "none";
+  params.loss = graph::RobustLoss::kNone;
   params.estimate_anchors = true;
   params.anchor_prior_sigma = 0.5;
   params.odometry_sigma = {0.02, 0.02, 0.005};
@@ -202,16 +247,17 @@ TEST(RangeSlam, SelfCalibratesAnchors) {
 
 TEST(RangeSlam, RobustLossAgainstNlosOutliers) {
   const Synthetic s(9, 0.10);  // 10 % of the ranges +1 m
-  for (const char* loss : {"none", "huber", "cauchy"}) {
+  for (const auto loss : {graph::RobustLoss::kNone, graph::RobustLoss::kHuber, graph::RobustLoss::kCauchy}) {
     RangeGraph g = s.graph(s.anchors);
     RangeGraphParams params;
     params.loss = loss;
     params.odometry_sigma = {0.02, 0.02, 0.005};
     g.build(params);
     EXPECT_TRUE(g.solve().usable);
-    std::printf("[ GRAPH    ] 10%% NLOS (+1 m), loss %-6s: pose rmse %.4f m\n", loss,
+    std::printf("[ GRAPH    ] 10%% NLOS (+1 m), loss %-6s: pose rmse %.4f m\n",
+                loc::enumName(loss),
                 s.poseRmse(g));
-    if (std::string(loss) == "cauchy") {
+    if (loss == graph::RobustLoss::kCauchy) {
       EXPECT_LT(s.poseRmse(g), 0.08);
     }
   }
@@ -229,7 +275,7 @@ TEST(PoseGraph, MrptCircleGraph) {
     ASSERT_EQ(id, static_cast<int>(gr.poses()));
     gr.addPose(pose);
   }
-  for (const auto& e : g.edges) gr.addOdometry(e.from, e.to, e.delta, e.sigma);
+  for (const auto& e : g.edges) gr.addRelativePose(e.from, e.to, e.delta, e.information);
   RangeGraphParams params;
   gr.build(params);
   gr.holdPose(0);  // gauge: the first pose
@@ -238,7 +284,7 @@ TEST(PoseGraph, MrptCircleGraph) {
   // The same graph started at the ground truth, not iterated: its cost there.
   RangeGraph at_truth;
   for (const auto& [id, pose] : truth.vertices) at_truth.addPose(pose);
-  for (const auto& e : g.edges) at_truth.addOdometry(e.from, e.to, e.delta, e.sigma);
+  for (const auto& e : g.edges) at_truth.addRelativePose(e.from, e.to, e.delta, e.information);
   RangeGraphParams zero = params;
   zero.max_iterations = 0;
   at_truth.build(zero);

@@ -42,11 +42,11 @@ TEST(MrptDemo, NlosRejectionFromTheLidarPose) {
   std::printf(
       "[ NLOS     ] beacon 1: %ld bad ranges, %ld good (all beacons); LiDAR-pose test recall "
       "%.3f false alarm %.3f; map ray-cast recall %.3f false alarm %.3f\n",
-      b1.lidar.bad, b1.lidar.good, b1.lidar.recall(), b1.lidar.false_alarm(), b1.raycast.recall(),
+      b1.pose.bad, b1.pose.good, b1.pose.recall(), b1.pose.false_alarm(), b1.raycast.recall(),
       b1.raycast.false_alarm());
-  EXPECT_GT(b1.lidar.bad, 100);
-  EXPECT_GE(b1.lidar.recall(), 0.9);
-  EXPECT_LE(b1.lidar.false_alarm(), 0.05);
+  EXPECT_GT(b1.pose.bad, 100);
+  EXPECT_GE(b1.pose.recall(), 0.9);
+  EXPECT_LE(b1.pose.false_alarm(), 0.05);
 }
 
 TEST(MrptDemo, GlobalInitialisationConverges) {

@@ -10,7 +10,7 @@
 
 using namespace uwbloc::loc;
 
-class Resamplers : public ::testing::TestWithParam<std::string> {
+class Resamplers : public ::testing::TestWithParam<ResamplerKind> {
  protected:
   const std::vector<double> w{0.30, 0.05, 0.15, 0.0, 0.25, 0.01, 0.09, 0.05, 0.06, 0.04};
 
@@ -33,7 +33,7 @@ class Resamplers : public ::testing::TestWithParam<std::string> {
     }
     for (size_t i = 0; i < w.size(); ++i) {
       const double se = std::sqrt(m * w[i] * (1 - w[i]) / trials) + 1e-9;
-      EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12) << GetParam() << " " << i;
+      EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12) << enumName(GetParam()) << " " << i;
     }
     return copies;
   }
@@ -51,16 +51,27 @@ TEST_P(Resamplers, DrawFewerThanTheyAreGivenWithoutBias) {
 }
 
 INSTANTIATE_TEST_SUITE_P(All, Resamplers,
-                         ::testing::Values("multinomial", "systematic", "stratified", "residual"));
+                         ::testing::Values(ResamplerKind::kMultinomial, ResamplerKind::kSystematic,
+                                           ResamplerKind::kStratified, ResamplerKind::kResidual),
+                         [](const auto& info) { return std::string(enumName(info.param)); });
 
-TEST(ParticleFilter, UnknownResamplerIsAnError) {
-  EXPECT_THROW(makeResampler("ibas-not-yet"), std::invalid_argument);
+TEST(ParticleFilter, UnknownResamplerIsAnErrorListingTheKnownOnes) {
+  ParamSet set = ParamSet::parse("resampler=ibas", "method 'pf-sir'");
+  ResamplerKind kind = ResamplerKind::kSystematic;
+  try {
+    set.read("resampler", kind);
+    ADD_FAILURE() << "no error for an unknown resampler";
+  } catch (const ParamError& e) {
+    const std::string what = e.what();
+    for (const char* part : {"pf-sir", "resampler", "ibas", "multinomial", "residual"})
+      EXPECT_NE(what.find(part), std::string::npos) << what;
+  }
 }
 
 TEST(ParticleFilter, EstimateAveragesTheAngleOnTheCircle) {
   ParticleFilterParams p;
   p.particles = 2;
-  ParticleFilter pf(p, makeResampler("systematic"), 1);
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kSystematic), 1);
   pf.initGaussian({0, 0, 0}, {0, 0, 0});
   auto& s = pf.particles();
   s.x = {1.0, 3.0};
@@ -78,7 +89,7 @@ TEST(ParticleFilter, EstimateAveragesTheAngleOnTheCircle) {
 TEST(ParticleFilter, DegenerateWeightsStayFiniteAndNormalised) {
   ParticleFilterParams p;
   p.particles = 50;
-  ParticleFilter pf(p, makeResampler("residual"), 3);
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kResidual), 3);
   pf.initGaussian({1, 2, 0.5}, {0.1, 0.1, 0.1});
   pf.weight([](double, double, double) { return -std::numeric_limits<double>::infinity(); });
   pf.weight([](double, double, double) { return std::nan(""); });
@@ -96,7 +107,7 @@ TEST(ParticleFilter, ResamplesOnlyBelowTheEssThreshold) {
   ParticleFilterParams p;
   p.particles = 100;
   p.ess_threshold = 0.5;
-  ParticleFilter pf(p, makeResampler("systematic"), 5);
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kSystematic), 5);
   pf.initGaussian({0, 0, 0}, {1, 1, 0.1});
   pf.weight([](double x, double, double) { return -0.01 * x * x; });  // mild: ESS stays high
   EXPECT_FALSE(pf.normalizeAndResample());
@@ -109,7 +120,7 @@ TEST(ParticleFilter, ResamplesOnlyBelowTheEssThreshold) {
 TEST(ParticleFilter, MotionModelMovesTheCloudByTheIncrement) {
   ParticleFilterParams p;
   p.particles = 4000;
-  ParticleFilter pf(p, makeResampler("systematic"), 9);
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kSystematic), 9);
   pf.initGaussian({1.0, 1.0, M_PI / 2}, {0, 0, 0});
   for (int i = 0; i < 10; ++i) pf.predict({0.1, 0.0, 0.0});  // 1 m forward, facing +y
   pf.normalizeAndResample();
@@ -143,7 +154,7 @@ TEST(ParticleFilter, WideStartShrinksOnceConvergedAndGrowsBackOnReset) {
   ParticleFilterParams p;
   p.particles = 50;
   p.initial_particles = 1000;
-  ParticleFilter pf(p, makeResampler("systematic"), 3);
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kSystematic), 3);
   pf.initUniformBox({0, 0, 0}, {2.0, 2.0, M_PI});
   EXPECT_EQ(pf.particles().size(), 1000u);
   // A wide cloud: even with degenerate weights it resamples at its own size.

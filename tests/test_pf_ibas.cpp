@@ -10,7 +10,9 @@
 #include "simulated_scenario.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/evaluation/runner.hpp"
-#include "uwbloc/localization/methods/pf_localizer.hpp"
+#include "test_helpers.hpp"
+#include "uwbloc/localization/methods/particle_localizer.hpp"
+#include "uwbloc/localization/registry.hpp"
 
 using namespace uwbloc;
 
@@ -27,7 +29,8 @@ struct Rig {
   }
 };
 
-void expectProperWeights(const loc::PfLocalizer& pf, const std::string& what) {
+void expectProperWeights(const loc::Estimator& est, const std::string& what) {
+  const auto& pf = dynamic_cast<const loc::ParticleLocalizer&>(est);
   double sum = 0.0;
   for (double w : pf.filter().weights()) {
     ASSERT_TRUE(std::isfinite(w)) << what;
@@ -38,13 +41,12 @@ void expectProperWeights(const loc::PfLocalizer& pf, const std::string& what) {
   EXPECT_TRUE(pf.filter().estimate().mean.allFinite()) << what;
 }
 
-loc::PfLocalizerParams ibasParams(const std::string& weights) {
-  loc::PfLocalizerParams p;
-  p.particles = 40;
-  p.swarm = "ibas";
-  p.ibas_iterations = 3;
-  p.ibas_weights = weights;
-  return p;
+// PF-IBAS as it ships (through the registry), with three swarm iterations per epoch and the
+// given weighting of the moved particles.
+std::unique_ptr<loc::Estimator> pfIbas(const std::string& weights, const loc::EstimatorContext& ctx,
+                                       const std::string& more = "") {
+  return loc::Registry::builtin().create(
+      "pf-ibas:ibas_iters=3,ibas_weights=" + weights + (more.empty() ? "" : "," + more), ctx);
 }
 
 // The degenerate-input tests run with every way of weighting the moved particles.
@@ -56,14 +58,8 @@ const data::Dataset& demo() {
   return ds;
 }
 
-// `spec` on the MRPT demo over seeds 1..seeds, run once per test binary (several tests compare
-// against the same pf-ibas run).
-const eval::MethodSummary& demoRun(const std::string& spec, int seeds) {
-  static std::map<std::pair<std::string, int>, eval::MethodSummary> runs;
-  auto it = runs.find({spec, seeds});
-  if (it == runs.end()) it = runs.emplace(std::make_pair(spec, seeds),
-                                          eval::evaluateMethod(demo(), spec, seeds, 1)).first;
-  return it->second;
+const eval::MethodSummary demoRun(const std::string& spec, int seeds) {
+  return eval::evaluateMethod(demo(), spec, seeds, 1);
 }
 
 uwb::Range range(double t, int id, double r) {
@@ -79,7 +75,8 @@ uwb::Range range(double t, int id, double r) {
 
 TEST_P(PfIbasWeights, AllRangesRejected) {
   Rig rig({{1, {0, 0, 2}}, {2, {8, 0, 2}}, {3, {0, 8, 2}}});
-  loc::PfLocalizer pf(ibasParams(GetParam()), rig.ctx, true, true);
+  auto pf_owner = pfIbas(GetParam(), rig.ctx);
+  loc::Estimator& pf = *pf_owner;
   for (int k = 0; k < 5; ++k) {
     const double t = 1.0 + k;
     pf.process(range(t, 1, std::numeric_limits<double>::quiet_NaN()));
@@ -93,7 +90,8 @@ TEST_P(PfIbasWeights, AllRangesRejected) {
 
 TEST_P(PfIbasWeights, SingleAnchor) {
   Rig rig({{1, {0, 0, 2}}});
-  loc::PfLocalizer pf(ibasParams(GetParam()), rig.ctx, false, true);
+  auto pf_owner = pfIbas(GetParam(), rig.ctx);
+  loc::Estimator& pf = *pf_owner;
   for (int k = 0; k < 10; ++k) pf.process(range(1.0 + k, 1, 2.5));
   pf.finish();
   expectProperWeights(pf, "single anchor");
@@ -101,7 +99,8 @@ TEST_P(PfIbasWeights, SingleAnchor) {
 
 TEST_P(PfIbasWeights, ScanWithNoReturns) {
   Rig rig({{1, {0, 0, 2}}, {2, {8, 0, 2}}});
-  loc::PfLocalizer pf(ibasParams(GetParam()), rig.ctx, true, true);
+  auto pf_owner = pfIbas(GetParam(), rig.ctx);
+  loc::Estimator& pf = *pf_owner;
   loc::LaserScan empty;
   empty.t = 1.0;
   empty.max_range = 8.0f;
@@ -125,8 +124,8 @@ INSTANTIATE_TEST_SUITE_P(PfIbas, PfIbasWeights,
 
 TEST(MrptDemo, PfIbasAgainstTheBaselines) {
   const auto& ds = demo();
-  const auto& ibas = demoRun("pf-ibas", 10);
-  const auto& sir = demoRun("pf-sir", 10);
+  const auto ibas = demoRun("pf-ibas", 10);
+  const auto sir = demoRun("pf-sir", 10);
   const auto uwb_pf = eval::evaluateMethod(ds, "uwb-pf", 10, 1);
   const auto lidar = eval::evaluateMethod(ds, "lidar-mcl", 10, 1);
   std::printf(
@@ -147,7 +146,7 @@ TEST(MrptDemo, PfIbasAgainstTheBaselines) {
 TEST(MrptDemo, GraphLowersPfIbas) {
   // The paper's Table 4: PF-IBAS without and with the graph, batch and sliding window.
   const auto& ds = demo();
-  const auto& pf = demoRun("pf-ibas", 10);
+  const auto pf = demoRun("pf-ibas", 10);
   const auto batch = eval::evaluateMethod(ds, "pf-ibas+graph", 10, 1);
   const auto window = eval::evaluateMethod(ds, "pf-ibas+graph:window=10", 10, 1);
   const auto icp = eval::evaluateMethod(ds, "pf-ibas+graph:icp=1", 3, 1);
@@ -182,18 +181,15 @@ TEST(PfIbasRoom, SequentialWeightsMatchTwoHundredParticles) {
 TEST(PfIbas, UnknownWeightingIsNamed) {
   Rig rig({{1, {0, 0, 2}}});
   test::expectErrorMentions<loc::ParamError>(
-      [&] { loc::PfLocalizer pf(ibasParams("likelihood"), rig.ctx, false, true); },
-      {"ibas_weights", "likelihood"});
+      [&] { pfIbas("likelihood", rig.ctx); }, {"ibas_weights", "likelihood", "sequential"});
 }
 
 TEST(PfIbas, CollapsedSwarmGetsDiversityCountedApartFromRejections) {
   // Every particle starts on one spot: the swarm's spread is below min_spread at once, jitter is
   // injected (and counted as such), and no measurement is counted as rejected for it.
   Rig rig({{1, {0, 0, 2}}, {2, {8, 0, 2}}, {3, {0, 8, 2}}});
-  auto p = ibasParams("sequential");
-  p.init_xy = 1e-4;
-  p.init_theta_deg = 0.01;
-  loc::PfLocalizer pf(p, rig.ctx, false, true);
+  auto pf_owner = pfIbas("sequential", rig.ctx, "init_xy=1e-4,init_theta=0.01");
+  loc::Estimator& pf = *pf_owner;
   const Eigen::Vector2d at(1.5, 1.5);
   for (int k = 0; k < 3; ++k)
     for (int id = 1; id <= 3; ++id) {
@@ -209,10 +205,10 @@ TEST(PfIbas, CollapsedSwarmGetsDiversityCountedApartFromRejections) {
 
 TEST(MrptDemo, GraphReportsItsFrontEndsRejections) {
   // pf-ibas+graph: the front end's NLOS rejections and range decisions reach the report.
-  const auto& g = demoRun("pf-ibas+graph", 1);
-  const auto& f = demoRun("pf-ibas", 1);
-  ASSERT_TRUE(g.rejected.count("front:nlos_lidar"));
-  EXPECT_EQ(g.rejected.at("front:nlos_lidar"), f.rejected.at("nlos_lidar"));
+  const auto g = demoRun("pf-ibas+graph", 1);
+  const auto f = demoRun("pf-ibas", 1);
+  ASSERT_TRUE(g.rejected.count("front:nlos_pose"));
+  EXPECT_EQ(g.rejected.at("front:nlos_pose"), f.rejected.at("nlos_pose"));
   EXPECT_EQ(g.range_decisions.size(), f.range_decisions.size());
   for (const auto& [name, count] : f.events) EXPECT_EQ(g.events.at("front:" + name), count);
 }

@@ -17,11 +17,15 @@ std::string trim(const std::string& s) {
   return s.substr(b, e - b + 1);
 }
 
-// Strips '#', ';' and '//' comments (MRPT config files use all three).
+// Strips a '#', ';' or '//' comment (MRPT config files use all three). A comment starts at the
+// beginning of the line or after white space; elsewhere the marks belong to the value, so
+// `front=pf-ibas:k=v;k=v` and `path=a//b` keep every character.
 std::string stripComment(const std::string& s) {
-  size_t cut = s.size();
-  for (const char* mark : {"#", ";", "//"}) cut = std::min(cut, s.find(mark));
-  return s.substr(0, cut);
+  for (size_t i = 0; i < s.size(); ++i) {
+    const bool mark = s[i] == '#' || s[i] == ';' || (s[i] == '/' && i + 1 < s.size() && s[i + 1] == '/');
+    if (mark && (i == 0 || s[i - 1] == ' ' || s[i - 1] == '\t')) return s.substr(0, i);
+  }
+  return s;
 }
 
 }  // namespace

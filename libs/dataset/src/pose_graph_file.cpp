@@ -1,5 +1,6 @@
 #include "uwbloc/dataset/pose_graph_file.hpp"
 
+#include <Eigen/Cholesky>
 #include <cmath>
 
 #include "uwbloc/dataset/errors.hpp"
@@ -22,12 +23,14 @@ PoseGraphFile readPoseGraph2D(const std::string& path) {
       e.from = static_cast<int>(num(1, "from"));
       e.to = static_cast<int>(num(2, "to"));
       e.delta << num(3, "dx"), num(4, "dy"), num(5, "dtheta");
-      // EDGE2 stores I11 I12 I22 I33 I13 I23; the diagonal whitens each component (the
-      // off-diagonal terms are dropped).
-      const double i11 = num(6, "I11"), i22 = num(8, "I22"), i33 = num(9, "I33");
-      if (!(i11 > 0 && i22 > 0 && i33 > 0))
-        throwInputError(path, line, "information must be positive");
-      e.sigma << 1 / std::sqrt(i11), 1 / std::sqrt(i22), 1 / std::sqrt(i33);
+      // The upper triangle, in each format's own order (see the header).
+      const bool toro = f[0] == "EDGE2";
+      const double i11 = num(6, "I11"), i12 = num(7, "I12");
+      const double i22 = num(toro ? 8 : 9, "I22"), i33 = num(toro ? 9 : 11, "I33");
+      const double i13 = num(toro ? 10 : 8, "I13"), i23 = num(toro ? 11 : 10, "I23");
+      e.information << i11, i12, i13, i12, i22, i23, i13, i23, i33;
+      if (e.information.llt().info() != Eigen::Success)
+        throwInputError(path, line, "information matrix is not positive definite");
       g.edges.push_back(e);
     } else {
       throwInputError(path, line, "unknown record '" + f[0] + "'");

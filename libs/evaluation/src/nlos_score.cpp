@@ -25,7 +25,7 @@ NlosScores scoreNlos(const data::Dataset& ds, const std::vector<loc::RangeDecisi
     const bool bad = err > bad_threshold;
     if (bad && anchor >= 0 && d.anchor_id != anchor) continue;
     for (auto [score, flag] :
-         {std::pair{&out.lidar, d.flag_lidar}, std::pair{&out.raycast, d.flag_raycast}}) {
+         {std::pair{&out.pose, d.flag_pose}, std::pair{&out.raycast, d.flag_raycast}}) {
       if (bad) {
         ++score->bad;
         score->bad_flagged += flag;

@@ -104,7 +104,7 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
     if (!m.range_decisions.empty() && !dataset.ground_truth.empty()) {
       const auto sc = scoreNlos(dataset, m.range_decisions);
-      for (auto [key, d] : {std::pair{"lidar", &sc.lidar}, std::pair{"raycast", &sc.raycast}})
+      for (auto [key, d] : {std::pair{"pose", &sc.pose}, std::pair{"raycast", &sc.raycast}})
         e["nlos_detection"][key] = {{"bad", d->bad},
                                     {"good", d->good},
                                     {"recall", number(d->recall())},
@@ -186,8 +186,8 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                   "  %s NLOS detection (range error > 0.5 m vs ground truth: %ld bad, %ld good): "
                   "LiDAR-pose test recall %.3f, false alarm %.3f; map ray-cast recall %.3f, "
                   "false alarm %.3f\n",
-                  m.spec.c_str(), sc.lidar.bad, sc.lidar.good, sc.lidar.recall(),
-                  sc.lidar.false_alarm(), sc.raycast.recall(), sc.raycast.false_alarm());
+                  m.spec.c_str(), sc.pose.bad, sc.pose.good, sc.pose.recall(),
+                  sc.pose.false_alarm(), sc.raycast.recall(), sc.raycast.false_alarm());
     out << buf;
   }
   for (const auto& m : methods) {

@@ -49,9 +49,13 @@ void Estimator::countRejection(uwb::RejectReason reason, int anchor_id) {
   countRejection(uwb::toString(reason), anchor_id);
 }
 
+void countRejection(EstimatorStatistics& stats, const std::string& reason, int anchor_id) {
+  ++stats.rejected[reason];
+  if (anchor_id >= 0) ++stats.rejected_by_anchor[anchor_id][reason];
+}
+
 void Estimator::countRejection(const std::string& reason, int anchor_id) {
-  ++stats_.rejected[reason];
-  if (anchor_id >= 0) ++stats_.rejected_by_anchor[anchor_id][reason];
+  loc::countRejection(stats_, reason, anchor_id);
 }
 
 }  // namespace uwbloc::loc

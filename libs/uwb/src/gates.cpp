@@ -29,6 +29,8 @@ const char* toString(RejectReason r) {
       return "innovation_gate";
     case RejectReason::kTimeBackwards:
       return "time_backwards";
+    case RejectReason::kOtherTag:
+      return "other_tag";
   }
   return "unknown";
 }

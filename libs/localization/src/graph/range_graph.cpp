@@ -1,8 +1,21 @@
 #include "uwbloc/localization/graph/range_graph.hpp"
 
+#include <Eigen/Cholesky>
 #include <stdexcept>
+#include <thread>
+
+#include "cost_functions.hpp"
 
 namespace uwbloc::loc::graph {
+
+RangeGraph::RangeGraph() = default;
+RangeGraph::~RangeGraph() = default;
+RangeGraph::RangeGraph(RangeGraph&&) noexcept = default;
+RangeGraph& RangeGraph::operator=(RangeGraph&&) noexcept = default;
+
+void RangeGraph::holdPose(int pose) {
+  problem_->SetParameterBlockConstant(poses_[static_cast<size_t>(pose)].data());
+}
 
 int RangeGraph::addPose(const Eigen::Vector3d& initial) {
   poses_.push_back(initial);
@@ -18,7 +31,18 @@ void RangeGraph::setAnchors(const std::vector<uwb::Anchor>& anchors) {
 
 void RangeGraph::addOdometry(int from, int to, const Eigen::Vector3d& delta,
                              const std::optional<Eigen::Vector3d>& sigma) {
-  odometry_.push_back({from, to, delta, sigma});
+  std::optional<Eigen::Matrix3d> sqrt_information;
+  if (sigma) sqrt_information = Eigen::Matrix3d(sigma->cwiseInverse().asDiagonal());
+  odometry_.push_back({from, to, delta, sqrt_information});
+}
+
+void RangeGraph::addRelativePose(int from, int to, const Eigen::Vector3d& delta,
+                                 const Eigen::Matrix3d& information) {
+  // Omega = L^T L with L upper triangular: the transpose of the Cholesky factor.
+  const Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (information + information.transpose()));
+  if (llt.info() != Eigen::Success || !information.allFinite())
+    throw std::invalid_argument("RangeGraph: relative-pose information is not positive definite");
+  odometry_.push_back({from, to, delta, Eigen::Matrix3d(llt.matrixU())});
 }
 
 void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag) {
@@ -88,17 +112,19 @@ void RangeGraph::build(const RangeGraphParams& params) {
   for (auto& b : biases_) p.AddParameterBlock(&b, 1);
   for (const auto& r : ranges_) {
     ceres::LossFunction* loss = nullptr;
-    if (params_.loss == "huber")
+    if (params_.loss == RobustLoss::kHuber)
       loss = new ceres::HuberLoss(params_.loss_scale);
-    else if (params_.loss == "cauchy")
+    else if (params_.loss == RobustLoss::kCauchy)
       loss = new ceres::CauchyLoss(params_.loss_scale);
     p.AddResidualBlock(RangeCost::Create(r.range, r.tag, params_.range_sigma), loss,
                        poses_[static_cast<size_t>(r.pose)].data(),
                        anchors_[static_cast<size_t>(r.anchor)].position.data(),
                        &biases_[static_cast<size_t>(r.anchor)]);
   }
+  const Eigen::Matrix3d default_sqrt_information = params_.odometry_sigma.cwiseInverse().asDiagonal();
   for (const auto& o : odometry_)
-    p.AddResidualBlock(RelativePoseCost::Create(o.delta, o.sigma.value_or(params_.odometry_sigma)),
+    p.AddResidualBlock(RelativePoseCost::Create(
+                           o.delta, o.sqrt_information.value_or(default_sqrt_information)),
                        nullptr, poses_[static_cast<size_t>(o.from)].data(),
                        poses_[static_cast<size_t>(o.to)].data());
   for (auto& l : landmarks_) p.AddParameterBlock(l.data(), 2);
@@ -141,7 +167,9 @@ GraphSolution RangeGraph::solve() {
   ceres::Solver::Options options;
   options.max_num_iterations = params_.max_iterations;
   options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.num_threads = 2;
+  options.num_threads = params_.threads > 0
+                            ? params_.threads
+                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   ceres::Solver::Summary summary;
   ceres::Solve(options, problem_.get(), &summary);
   GraphSolution out;

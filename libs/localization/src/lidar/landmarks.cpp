@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "uwbloc/localization/kalman/kalman.hpp"
+
 namespace uwbloc::loc {
 
 namespace {
@@ -134,23 +136,25 @@ Eigen::Vector2d observeLandmarkRangeBearing(const Eigen::Vector3d& pose,
 
 int LandmarkMap::integrate(const Eigen::Vector3d& pose, const Eigen::Matrix3d& pose_cov,
                            const Eigen::Vector2d& observation, const Eigen::Matrix2d& obs_cov) {
+  // Nearest neighbour by Mahalanobis distance among the landmarks inside the chi-square gate.
+  // For landmark m the observation's noise is the observation's own plus the pose's, seen
+  // through the pose Jacobian: R_m = H_x P H_x^T + R, and S = H_m C H_m^T + R_m.
+  const uwb::ChiSquareGate gate(gate_);
   int best = -1;
-  double best_d2 = gate_;
-  Eigen::Matrix2d best_s, best_hm;
+  kalman::Innovation<2> best_inn;
+  Eigen::Matrix2d best_hm, best_r;
   for (size_t i = 0; i < landmarks_.size(); ++i) {
     const auto& lm = landmarks_[i];
     Eigen::Matrix<double, 2, 3> hx;
     Eigen::Matrix2d hm;
     const Eigen::Vector2d predicted = observeLandmarkXy(pose, lm.position, &hx, &hm);
-    const Eigen::Vector2d nu = observation - predicted;
-    const Eigen::Matrix2d s =
-        hx * pose_cov * hx.transpose() + hm * lm.covariance * hm.transpose() + obs_cov;
-    const double d2 = nu.dot(s.ldlt().solve(nu));
-    if (d2 < best_d2) {
-      best_d2 = d2;
+    const Eigen::Matrix2d r = hx * pose_cov * hx.transpose() + obs_cov;
+    const auto inn = kalman::innovate<2, 2>(lm.covariance, observation - predicted, hm, r);
+    if (kalman::inGate(inn, gate) && (best < 0 || inn.d2 < best_inn.d2)) {
       best = static_cast<int>(i);
-      best_s = s;
+      best_inn = inn;
       best_hm = hm;
+      best_r = r;
     }
   }
   if (best < 0) {
@@ -171,11 +175,10 @@ int LandmarkMap::integrate(const Eigen::Vector3d& pose, const Eigen::Matrix3d& p
     return lm.id;
   }
   auto& lm = landmarks_[static_cast<size_t>(best)];
-  // Kalman update of the landmark: K = C H_m^T S^-1.
-  const Eigen::Vector2d nu = observation - observeLandmarkXy(pose, lm.position);
-  const Eigen::Matrix2d k = lm.covariance * best_hm.transpose() * best_s.inverse();
-  lm.position += k * nu;
-  lm.covariance = (Eigen::Matrix2d::Identity() - k * best_hm) * lm.covariance;
+  // Kalman update of the landmark (the shared Joseph-form steps (4)-(6)).
+  Eigen::Vector2d position = lm.position;
+  kalman::josephUpdate<2, 2>(position, lm.covariance, best_inn, best_hm, best_r);
+  lm.position = position;
   ++lm.observations;
   return lm.id;
 }

@@ -1,5 +1,7 @@
 #include "uwbloc/localization/methods/multilateration_estimator.hpp"
 
+#include "uwbloc/localization/kalman/kalman.hpp"
+
 namespace uwbloc::loc {
 
 MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
@@ -48,16 +50,8 @@ std::optional<PoseEstimate> MultilaterationEstimator::solveEpoch(
   last_tag_ = fix.position;
   last_t_ = t;
 
-  PoseEstimate est;
-  est.t = t;
-  const Eigen::Vector2d robot =
-      robotFromTag(fix.position, epoch.front().measurement.tag_on_robot, heading_.heading());
-  est.pose << robot, heading_.heading();
-  est.covariance.setZero();
-  est.covariance.topLeftCorner<2, 2>() = fix.covariance;
-  est.covariance(2, 2) = M_PI * M_PI;
-  est.heading_valid = false;
-  return est;
+  return kalman::tagTrackPose(t, fix.position, fix.covariance,
+                              epoch.front().measurement.tag_on_robot, heading_.heading());
 }
 
 }  // namespace uwbloc::loc

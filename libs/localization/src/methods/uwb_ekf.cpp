@@ -19,48 +19,26 @@ void UwbEkf::reset() {
 }
 
 void UwbEkf::predict(double t) {
-  // x = F x, P = F P F^T + Q (constant velocity).
   const double dt = t - t_;
   if (dt <= 0.0) return;
-  Eigen::Matrix4d f, q;
-  constantVelocityModel(dt, params_.accel_psd, f, q, params_.velocity_tau);
-  x_ = f * x_;
-  p_ = f * p_ * f.transpose() + q;
+  kalman::predictConstantVelocity(x_, p_, dt, params_.accel_psd, params_.velocity_tau);
   t_ = t;
 }
 
-bool UwbEkf::inGate(const AcceptedRange& r, double* innovation, Eigen::RowVector4d* hj,
-                    double* s) const {
+kalman::Innovation<1> UwbEkf::innovate(const AcceptedRange& r,
+                                       Eigen::Matrix<double, 1, 4>* hj) const {
   // h(x) = || (x, y, z_tag) - anchor ||, H = [dx/h, dy/h, 0, 0].
   const Eigen::Vector3d tag(x_(0), x_(1), r.measurement.tag_on_robot.z());
   const Eigen::Vector3d diff = tag - r.anchor;
   const double h = std::max(diff.norm(), 1e-6);
   *hj << diff.x() / h, diff.y() / h, 0.0, 0.0;
-  *innovation = r.measurement.range - h;
-  // S = H P H^T + R; Mahalanobis gate on the scalar innovation.
-  *s = (*hj) * p_ * hj->transpose() + params_.front.sigma * params_.front.sigma;
-  return (*innovation) * (*innovation) / (*s) <= params_.gate;
-}
-
-void UwbEkf::update(double innovation, const Eigen::RowVector4d& hj, double s) {
-  const double var_r = params_.front.sigma * params_.front.sigma;
-  const Eigen::Vector4d k = p_ * hj.transpose() / s;
-  x_ += k * innovation;
-  // Joseph form keeps P symmetric positive definite.
-  const Eigen::Matrix4d ikh = Eigen::Matrix4d::Identity() - k * hj;
-  p_ = ikh * p_ * ikh.transpose() + var_r * k * k.transpose();
+  return kalman::innovate<4, 1>(p_, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), *hj,
+                                rangeNoise());
 }
 
 PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
-  PoseEstimate est;
-  est.t = t_;
-  const double heading = heading_.heading();
-  est.pose << robotFromTag(x_.head<2>(), tag_on_robot, heading), heading;
-  est.covariance.setZero();
-  est.covariance.topLeftCorner<2, 2>() = p_.topLeftCorner<2, 2>();
-  est.covariance(2, 2) = M_PI * M_PI;
-  est.heading_valid = false;
-  return est;
+  return kalman::tagTrackPose(t_, x_.head<2>(), p_.topLeftCorner<2, 2>(), tag_on_robot,
+                              heading_.heading());
 }
 
 std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
@@ -81,10 +59,7 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
       return std::nullopt;
     }
     quarantine_.clear();
-    x_ << fix.position, 0.0, 0.0;
-    p_.setZero();
-    p_.topLeftCorner<2, 2>() = fix.covariance;
-    p_(2, 2) = p_(3, 3) = 1.0;
+    kalman::initialiseFromFix(fix, x_, p_);
     t_ = epochTime(*epoch);
     initialised_ = true;
     gated_in_a_row_ = 0;
@@ -92,12 +67,13 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
   }
 
   predict(accepted->measurement.t);
-  double innovation = 0.0, s = 0.0;
-  Eigen::RowVector4d hj;
+  Eigen::Matrix<double, 1, 4> hj;
   const int id = accepted->measurement.anchor_id;
   // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
   const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigma);
-  const bool in_gate = inGate(*accepted, &innovation, &hj, &s);
+  const auto inn = innovate(*accepted, &hj);
+  const double innovation = inn.y(0);
+  const bool in_gate = kalman::inGate(inn, uwb::ChiSquareGate(params_.gate));
   auto q = quarantine_.find(id);
   bool used = false;
   if (!in_gate) {
@@ -108,7 +84,7 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
     countRejection("quarantine", id);
   } else if (q == quarantine_.end() || ++q->second >= params_.readmit) {
     if (q != quarantine_.end()) quarantine_.erase(q);
-    update(innovation, hj, s);
+    kalman::josephUpdate<4, 1>(x_, p_, inn, hj, rangeNoise());
     used = true;
   } else {
     countRejection("quarantine", id);

@@ -2,6 +2,8 @@
 
 #include <Eigen/Dense>
 
+#include "uwbloc/localization/kalman/kalman.hpp"
+
 namespace uwbloc::loc {
 
 UwbKf::UwbKf(const UwbKfParams& params, const EstimatorContext& context)
@@ -38,10 +40,7 @@ std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epo
   const Eigen::Matrix2d& r = fix.covariance;
 
   auto initialise = [&] {
-    x_ << z, 0.0, 0.0;
-    p_.setZero();
-    p_.topLeftCorner<2, 2>() = r;
-    p_(2, 2) = p_(3, 3) = 1.0;  // 1 m/s velocity uncertainty
+    kalman::initialiseFromFix(fix, x_, p_);
     t_ = t;
     initialised_ = true;
     gated_in_a_row_ = 0;
@@ -54,17 +53,14 @@ std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epo
     }
     initialise();
   } else {
-    // Predict: x = F x, P = F P F^T + Q.
-    Eigen::Matrix4d f, q;
-    constantVelocityModel(std::max(0.0, t - t_), params_.accel_psd, f, q, params_.velocity_tau);
-    x_ = f * x_;
-    p_ = f * p_ * f.transpose() + q;
+    kalman::predictConstantVelocity(x_, p_, std::max(0.0, t - t_), params_.accel_psd,
+                                    params_.velocity_tau);
     t_ = std::max(t_, t);
-    // Update with H = [I 0]: innovation y = z - H x, S = H P H^T + R.
-    const Eigen::Vector2d y = z - x_.head<2>();
-    const Eigen::Matrix2d s = p_.topLeftCorner<2, 2>() + r;
-    const double d2 = y.dot(s.ldlt().solve(y));
-    if (d2 > params_.gate) {
+    // The fix measures the position: H = [I 0], R = the fix's covariance.
+    Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
+    h.leftCols<2>().setIdentity();
+    const auto inn = kalman::innovate<4, 2>(p_, z - x_.head<2>(), h, r);
+    if (!kalman::inGate(inn, uwb::ChiSquareGate(params_.gate))) {
       countRejection("kf_innovation_gate");
       if (++gated_in_a_row_ >= params_.max_gated && consistent) {
         ++stats_.resets;
@@ -72,24 +68,12 @@ std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epo
       }
     } else {
       gated_in_a_row_ = 0;
-      // K = P H^T S^-1; Joseph form P = (I - K H) P (I - K H)^T + K R K^T.
-      const Eigen::Matrix<double, 4, 2> k = p_.leftCols<2>() * s.inverse();
-      Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
-      h.leftCols<2>().setIdentity();
-      const Eigen::Matrix4d ikh = Eigen::Matrix4d::Identity() - k * h;
-      x_ += k * y;
-      p_ = ikh * p_ * ikh.transpose() + k * r * k.transpose();
+      kalman::josephUpdate<4, 2>(x_, p_, inn, h, r);
     }
   }
   const double heading = heading_.update(x_.tail<2>());
-  PoseEstimate est;
-  est.t = t_;
-  est.pose << robotFromTag(x_.head<2>(), epoch.front().measurement.tag_on_robot, heading), heading;
-  est.covariance.setZero();
-  est.covariance.topLeftCorner<2, 2>() = p_.topLeftCorner<2, 2>();
-  est.covariance(2, 2) = M_PI * M_PI;
-  est.heading_valid = false;
-  return est;
+  return kalman::tagTrackPose(t_, x_.head<2>(), p_.topLeftCorner<2, 2>(),
+                              epoch.front().measurement.tag_on_robot, heading);
 }
 
 }  // namespace uwbloc::loc

@@ -100,13 +100,18 @@ class Residual : public ResamplingStrategy {
 
 }  // namespace
 
-std::unique_ptr<ResamplingStrategy> makeResampler(const std::string& name) {
-  if (name == "multinomial") return std::make_unique<Multinomial>();
-  if (name == "systematic") return std::make_unique<Systematic>();
-  if (name == "stratified") return std::make_unique<Stratified>();
-  if (name == "residual") return std::make_unique<Residual>();
-  throw std::invalid_argument("unknown resampler '" + name +
-                              "' (known: multinomial, systematic, stratified, residual)");
+std::unique_ptr<ResamplingStrategy> makeResampler(ResamplerKind kind) {
+  switch (kind) {
+    case ResamplerKind::kMultinomial:
+      return std::make_unique<Multinomial>();
+    case ResamplerKind::kSystematic:
+      return std::make_unique<Systematic>();
+    case ResamplerKind::kStratified:
+      return std::make_unique<Stratified>();
+    case ResamplerKind::kResidual:
+      return std::make_unique<Residual>();
+  }
+  throw std::invalid_argument("unknown resampler");
 }
 
 ParticleFilter::ParticleFilter(const ParticleFilterParams& params,

@@ -17,7 +17,7 @@ struct DetectorScore {
 };
 
 struct NlosScores {
-  DetectorScore lidar;    ///< the pose-based test
+  DetectorScore pose;     ///< the pose-based test
   DetectorScore raycast;  ///< the map ray-cast
 };
 

@@ -30,7 +30,7 @@ struct RangeDecision {
   double t = 0.0;
   int anchor_id = 0;
   double range = 0.0;
-  bool flag_lidar = false;    ///< the pose-based test flagged it
+  bool flag_pose = false;     ///< the pose-based test flagged it
   bool flag_raycast = false;  ///< the map ray-cast flagged it
   bool used = false;          ///< it weighted the particles
 };
@@ -45,6 +45,9 @@ struct EstimatorStatistics {
   /// ("swarm_diversity_injection"), epochs whose NLOS test was suspended ("nlos_test_suspended").
   std::map<std::string, long> events;
 };
+
+/// Counts one rejection by reason (and by anchor when anchor_id >= 0).
+void countRejection(EstimatorStatistics& stats, const std::string& reason, int anchor_id = -1);
 
 /// What a method may know besides the events: anchors, the start pose (for tracking and dead
 /// reckoning, taken from the first ground-truth pose), and the run's seed.

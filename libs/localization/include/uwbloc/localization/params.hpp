@@ -5,6 +5,7 @@
 
 #include <map>
 #include <sstream>
+#include <type_traits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -22,6 +23,34 @@ class ParamError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// One named value of an enum parameter. An enum becomes a parameter by declaring, beside it,
+///   constexpr std::array<EnumName<E>, N> enumNames(E) { return {{{E::kA, "a"}, ...}}; }
+/// (found by argument-dependent lookup); its text is then parsed once, when the method is built,
+/// and an unknown name is an error that lists the known ones.
+template <class E>
+struct EnumName {
+  E value;
+  const char* name;
+};
+
+/// The name of an enum value ("?" when it has none).
+template <class E>
+const char* enumName(E value) {
+  for (const auto& n : enumNames(E{}))
+    if (n.value == value) return n.name;
+  return "?";
+}
+
+/// "a, b or c": the known names of an enum.
+template <class E>
+std::string enumChoices() {
+  std::string out;
+  const auto names = enumNames(E{});
+  for (size_t i = 0; i < names.size(); ++i)
+    out += std::string(i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i].name;
+  return out;
+}
 
 class ParamSet {
  public:
@@ -43,13 +72,23 @@ class ParamSet {
     auto it = values_.find(key);
     if (it == values_.end()) return;
     used_.push_back(key);
-    std::istringstream in(it->second);
-    T parsed{};
-    in >> parsed;
-    if (in.fail() || !(in >> std::ws).eof())
-      throw ParamError(context_ + ": parameter '" + key + "' has invalid value '" + it->second +
-                       "'");
-    value = parsed;
+    if constexpr (std::is_enum_v<T>) {
+      for (const auto& n : enumNames(T{}))
+        if (it->second == n.name) {
+          value = n.value;
+          return;
+        }
+      throw ParamError(context_ + ": parameter '" + key + "' must be " + enumChoices<T>() +
+                       ", got '" + it->second + "'");
+    } else {
+      std::istringstream in(it->second);
+      T parsed{};
+      in >> parsed;
+      if (in.fail() || !(in >> std::ws).eof())
+        throw ParamError(context_ + ": parameter '" + key + "' has invalid value '" + it->second +
+                         "'");
+      value = parsed;
+    }
   }
   /// Throws ParamError listing keys that no field read.
   void checkAllUsed(const std::vector<std::string>& known) const;
@@ -88,9 +127,13 @@ inline void ParamSet::read<bool>(const std::string& key, bool& value) {
 namespace detail {
 template <class T>
 std::string formatValue(const T& v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
+  if constexpr (std::is_enum_v<T>) {
+    return enumName(v);
+  } else {
+    std::ostringstream out;
+    out << v;
+    return out.str();
+  }
 }
 inline std::string formatValue(bool v) { return v ? "1" : "0"; }
 }  // namespace detail

@@ -79,12 +79,17 @@ class IncrementQueueGate {
   int reseeds_ = 0;
 };
 
-/// Chi-square gate on a residual r with variance s: accept iff r^2 / s <= threshold.
+/// Chi-square gate on a residual r with variance s: accept iff r^2 / s <= threshold. For a
+/// vector innovation y with covariance S, the squared Mahalanobis distance y^T S^-1 y takes the
+/// place of r^2 / s (acceptSquared), with the threshold for its degrees of freedom. The one gate
+/// of every filter: the Kalman family, the particle filters' NLOS test and landmark association.
 /// The default 5.0 is the mobile-node paper's factor for one degree of freedom.
 class ChiSquareGate {
  public:
   explicit ChiSquareGate(double threshold = 5.0) : threshold_(threshold) {}
   bool accept(double residual, double variance) const;
+  /// Accepts a squared Mahalanobis distance d^2 <= threshold (NaN is rejected).
+  bool acceptSquared(double d2) const { return d2 <= threshold_; }
   double threshold() const { return threshold_; }
 
  private:

@@ -19,7 +19,7 @@ namespace uwbloc::loc {
 
 struct GraphSmootherParams {
   RangeFrontEndParams front;               ///< range checks; sigma is the range edges' std
-  std::string loss = "cauchy";             ///< none, huber or cauchy
+  graph::RobustLoss loss = graph::RobustLoss::kCauchy;  ///< on ranges
   double loss_scale = 2.0;                 ///< in standard deviations
   double odom_sigma_xy = 0.01;             ///< per increment [m] ...
   double odom_sigma_xy_per_m = 0.05;       ///< ... plus this per metre moved

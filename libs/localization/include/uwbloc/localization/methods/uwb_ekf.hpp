@@ -14,6 +14,7 @@
 #include <map>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
 
@@ -55,9 +56,11 @@ class UwbEkf : public UwbEstimator {
 
  private:
   void predict(double t);
-  /// Returns false when the innovation gate rejects the range.
-  bool inGate(const AcceptedRange& r, double* innovation, Eigen::RowVector4d* hj, double* s) const;
-  void update(double innovation, const Eigen::RowVector4d& hj, double s);
+  /// Steps (1)-(3) of the update for one range, and its Jacobian.
+  kalman::Innovation<1> innovate(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const;
+  Eigen::Matrix<double, 1, 1> rangeNoise() const {
+    return Eigen::Matrix<double, 1, 1>(params_.front.sigma * params_.front.sigma);
+  }
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
   UwbEkfParams params_;

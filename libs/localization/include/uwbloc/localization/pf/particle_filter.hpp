@@ -1,16 +1,20 @@
 // Particle-filter core over (x, y, theta). Particles live in contiguous arrays (structure of
 // arrays) sized once; predict, weight, resample and estimate allocate nothing per step.
-// Resampling is a strategy (multinomial, systematic, stratified, residual), and the same slot
-// takes a swarm optimiser that moves particles instead of copying them (PF-IBAS).
+// Resampling is a strategy (multinomial, systematic, stratified, residual). The localiser's
+// posterior step (pf/parts.hpp) chooses between resampling and the beetle swarm that moves the
+// particles instead (PF-IBAS); the swarm still resamples through this strategy on degeneracy.
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
+
+#include "uwbloc/localization/params.hpp"
 
 namespace uwbloc::loc {
 
@@ -56,8 +60,15 @@ class ResamplingStrategy {
                              Rng& rng) = 0;
 };
 
-/// "multinomial", "systematic", "stratified" or "residual"; throws std::invalid_argument.
-std::unique_ptr<ResamplingStrategy> makeResampler(const std::string& name);
+enum class ResamplerKind { kMultinomial, kSystematic, kStratified, kResidual };
+constexpr std::array<EnumName<ResamplerKind>, 4> enumNames(ResamplerKind) {
+  return {{{ResamplerKind::kMultinomial, "multinomial"},
+           {ResamplerKind::kSystematic, "systematic"},
+           {ResamplerKind::kStratified, "stratified"},
+           {ResamplerKind::kResidual, "residual"}}};
+}
+
+std::unique_ptr<ResamplingStrategy> makeResampler(ResamplerKind kind);
 
 struct ParticleFilterParams {
   int particles = 300;

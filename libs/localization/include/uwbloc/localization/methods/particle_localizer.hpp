@@ -1,0 +1,95 @@
+// Particle-filter localisers composed of parts (pf/parts.hpp): the odometry motion model, the
+// measurement models a registry entry chooses (LiDAR likelihood field, UWB ranges with the NLOS
+// test) and a posterior step (resampling, or the PF-IBAS beetle swarm).
+//
+// Measurements are processed per epoch (everything with one timestamp: a scan and its ranges).
+// At the epoch's close the measurement models weight the particles in order (the LiDAR first, so
+// that the UWB NLOS test judges ranges against the pose after the LiDAR update), then the
+// posterior step resamples or moves the particles, and the estimate is the weighted mean.
+#pragma once
+
+#include <memory>
+#include <tuple>
+#include <type_traits>
+#include <vector>
+
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/pf/parts.hpp"
+
+namespace uwbloc::loc {
+
+class ParticleLocalizer : public Estimator {
+ public:
+  /// `measurements` in the order they weight an epoch.
+  ParticleLocalizer(const ParticleCoreParams& core, const EstimatorContext& context,
+                    std::vector<std::unique_ptr<EpochMeasurement>> measurements,
+                    std::unique_ptr<PosteriorStep> posterior);
+
+  std::vector<std::pair<std::string, std::string>> artifacts() const override;
+  const ParticleFilter& filter() const { return pf_; }
+
+ protected:
+  std::optional<PoseEstimate> doProcess(const Event& event) override;
+  std::optional<PoseEstimate> doFinish() override;
+  void reset() override { initialise(); }
+
+ private:
+  void initialise();
+  std::optional<PoseEstimate> finishEpoch();
+  /// The epoch's log-likelihood at one pose, summed over the measurement models.
+  double epochLogLikelihood(double x, double y, double theta) const;
+
+  ParticleCoreParams core_;
+  EstimatorContext context_;
+  ParticleFilter pf_;
+  std::vector<std::unique_ptr<EpochMeasurement>> measurements_;
+  std::unique_ptr<PosteriorStep> posterior_;
+  EpochFitness fitness_;  ///< epochLogLikelihood, bound once
+  double epoch_t_ = 0.0;
+  bool epoch_open_ = false;
+};
+
+/// The parameters of a particle-filter method: the filter's own, then one struct per part.
+/// A registry entry names the parts (e.g. PfMethodParams<LidarPartParams, UwbPartParams,
+/// SwarmPartParams> for PF-IBAS); `uwbloc methods` lists exactly their keys.
+template <class... Parts>
+struct PfMethodParams {
+  ParticleCoreParams core;
+  std::tuple<Parts...> parts;
+
+  template <class P>
+  static constexpr bool has = (std::is_same_v<P, Parts> || ...);
+  template <class P>
+  const P& part() const {
+    return std::get<P>(parts);
+  }
+  template <class V>
+  void visit(V&& v) {
+    core.visit(v);
+    std::apply([&](auto&... p) { (p.visit(v), ...); }, parts);
+  }
+};
+
+namespace detail {
+std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core,
+                                                  const EstimatorContext& context,
+                                                  const LidarPartParams* lidar,
+                                                  const UwbPartParams* uwb,
+                                                  const SwarmPartParams* swarm);
+}  // namespace detail
+
+/// Builds the localiser from the parts its parameters name.
+template <class... Parts>
+std::unique_ptr<Estimator> makeParticleLocalizer(const PfMethodParams<Parts...>& p,
+                                                 const EstimatorContext& context) {
+  using P = PfMethodParams<Parts...>;
+  const LidarPartParams* lidar = nullptr;
+  const UwbPartParams* uwb = nullptr;
+  const SwarmPartParams* swarm = nullptr;
+  if constexpr (P::template has<LidarPartParams>) lidar = &p.template part<LidarPartParams>();
+  if constexpr (P::template has<UwbPartParams>) uwb = &p.template part<UwbPartParams>();
+  if constexpr (P::template has<SwarmPartParams>) swarm = &p.template part<SwarmPartParams>();
+  return detail::buildParticleLocalizer(p.core, context, lidar, uwb, swarm);
+}
+
+}  // namespace uwbloc::loc

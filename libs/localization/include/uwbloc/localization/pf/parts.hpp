@@ -1,0 +1,269 @@
+// The parts a particle-filter localiser is composed of (see ParticleLocalizer):
+//  - the motion model: the odometry sampler of ParticleFilter (MotionNoise);
+//  - measurement models, each owning one sensor's share of an epoch (everything with one
+//    timestamp: a scan and its ranges): the LiDAR likelihood field, and UWB ranges with the NLOS
+//    test;
+//  - a posterior step: resampling by one of the strategies of particle_filter.hpp, or the
+//    improved beetle swarm that moves the particles (PF-IBAS, the paper's §2.1.3).
+// A registry entry chooses the parts; every option is an enum parsed once, when it is built.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/lidar/landmarks.hpp"
+#include "uwbloc/localization/lidar/likelihood_field.hpp"
+#include "uwbloc/localization/optim/optimizers.hpp"
+#include "uwbloc/localization/pf/particle_filter.hpp"
+#include "uwbloc/localization/range_front_end.hpp"
+
+namespace uwbloc::loc {
+
+enum class InitMode { kTracking, kGlobal };
+constexpr std::array<EnumName<InitMode>, 2> enumNames(InitMode) {
+  return {{{InitMode::kTracking, "tracking"}, {InitMode::kGlobal, "global"}}};
+}
+
+/// The filter itself: particle count, resampling strategy, motion noise and start.
+struct ParticleCoreParams {
+  int particles = 300;                             ///< n
+  ResamplerKind resampler = ResamplerKind::kSystematic;
+  double ess = 0.5;                                ///< resample when ESS / N < this
+  MotionNoise motion;                              ///< odometry sampling noise
+  InitMode init = InitMode::kTracking;             ///< box around the start pose, or global
+  double init_xy = 0.5;                            ///< tracking box half-width [m]
+  double init_theta_deg = 20.0;                    ///< tracking box half-width [deg]
+  int init_n = 0;  ///< particles at the start, kept until the cloud converges (0: n)
+
+  template <class V>
+  void visit(V&& v) {
+    v("n", particles, "particles");
+    v("resampler", resampler, "multinomial, systematic, stratified or residual");
+    v("ess", ess, "resample when ESS/N falls below this");
+    v("a1", motion.alpha1, "odometry noise: rotation per radian");
+    v("a2", motion.alpha2, "odometry noise: rotation per metre [rad/m]");
+    v("a3", motion.alpha3, "odometry noise: translation per metre");
+    v("a4", motion.alpha4, "odometry noise: translation per radian [m/rad]");
+    v("init", init, "tracking or global");
+    v("init_xy", init_xy, "tracking: half-width of the start box [m]");
+    v("init_theta", init_theta_deg, "tracking: half-width of the start box [deg]");
+    v("init_n", init_n,
+      "particles at the start (0: n), down to n once the heading std < 10 deg and the planar "
+      "std < 0.3 m (for an unknown start heading or global localisation)");
+  }
+};
+
+/// The LiDAR measurement model: the map's likelihood field, and the corner-landmark map.
+struct LidarPartParams {
+  LikelihoodFieldParams field;
+  bool landmarks = false;       ///< build and save a corner-landmark map along the run
+  double landmark_sigma = 0.05;  ///< std of a corner observation [m]
+
+  template <class V>
+  void visit(V&& v) {
+    v("lf_sigma", field.sigma_hit, "likelihood field: endpoint std [m]");
+    v("lf_zhit", field.z_hit, "likelihood field: weight of the Gaussian part");
+    v("lf_zrand", field.z_rand, "likelihood field: weight of the uniform part");
+    v("lf_decimation", field.decimation, "likelihood field: use every n-th ray");
+    v("lf_max_dist", field.max_dist, "likelihood field: distances capped here [m]");
+    v("lf_max_range", field.max_range, "likelihood field: ignore rays beyond [m]");
+    v("landmarks", landmarks, "build a corner-landmark map (saved as <method>_landmarks.csv)");
+    v("landmark_sigma", landmark_sigma, "std of a corner observation [m]");
+  }
+};
+
+/// How a range is judged NLOS: not at all, against the filter's pose (|d - d̂| > k sqrt(S)),
+/// or by ray-casting the tag-anchor segment on the map from the filter's pose.
+enum class NlosTest { kNone, kPose, kRaycast };
+constexpr std::array<EnumName<NlosTest>, 3> enumNames(NlosTest) {
+  return {{{NlosTest::kNone, "none"}, {NlosTest::kPose, "pose"}, {NlosTest::kRaycast, "raycast"}}};
+}
+enum class NlosAction { kReject, kDownweight };
+constexpr std::array<EnumName<NlosAction>, 2> enumNames(NlosAction) {
+  return {{{NlosAction::kReject, "reject"}, {NlosAction::kDownweight, "downweight"}}};
+}
+
+/// The UWB measurement model: range checks, the range likelihood and the NLOS test.
+struct UwbPartParams {
+  RangeFrontEndParams front;            ///< range checks; sigma is the range likelihood's std
+  NlosTest nlos = NlosTest::kPose;      ///< NLOS test
+  double nlos_k = 3.0;                  ///< gate width in standard deviations
+  NlosAction nlos_action = NlosAction::kReject;
+  double downweight = 5.0;              ///< sigma factor for down-weighted ranges
+  /// The NLOS test judges ranges against the filter's pose; when most of an epoch's ranges (at
+  /// least 2) fail it this many epochs in a row, the pose is more likely wrong than the ranges,
+  /// and the test is suspended (the ranges are used) until they agree with the pose again.
+  /// 0: never suspend.
+  int nlos_suspend = 2;
+
+  template <class V>
+  void visit(V&& v) {
+    front.visit(v);
+    v("nlos", nlos, "NLOS test on UWB ranges: pose, raycast or none");
+    v("nlos_k", nlos_k, "NLOS gate width [std]");
+    v("nlos_action", nlos_action, "reject or downweight flagged ranges");
+    v("downweight", downweight, "sigma factor for down-weighted ranges");
+    v("nlos_suspend", nlos_suspend,
+      "suspend the NLOS test after this many epochs in a row in which most ranges (>= 2) fail "
+      "it (0: never)");
+  }
+};
+
+/// Weights after the swarm: "fitness" (eq. 28 as printed: the epoch's likelihood at the moved
+/// positions, whatever the particle weighed before), "sequential" (the weight it carried into the
+/// epoch times that likelihood: a proper sequential importance weight between resamplings) or
+/// "posterior" (sequential, times the predicted density's ratio between the moved and the
+/// original position, the predicted cloud taken as a Gaussian).
+enum class SwarmWeights { kFitness, kSequential, kPosterior };
+constexpr std::array<EnumName<SwarmWeights>, 3> enumNames(SwarmWeights) {
+  return {{{SwarmWeights::kFitness, "fitness"},
+           {SwarmWeights::kSequential, "sequential"},
+           {SwarmWeights::kPosterior, "posterior"}}};
+}
+
+/// The PF-IBAS posterior step (the paper's §2.1.3 with the changes the README measures).
+struct SwarmPartParams {
+  int iterations = 1;          ///< IBAS iterations per epoch (the paper: one)
+  double step = 0.1;           ///< IBAS initial step [m, rad] (the paper's 0.1)
+  bool move_theta = false;     ///< the swarm moves the heading too (else x, y only)
+  double min_spread = 0.02;    ///< inject diversity below this swarm spread [m]
+  bool resample = true;        ///< after the swarm, also resample when ESS/N < ess
+  SwarmWeights weights = SwarmWeights::kSequential;
+
+  template <class V>
+  void visit(V&& v) {
+    v("ibas_iters", iterations, "IBAS iterations per epoch");
+    v("ibas_step", step, "IBAS initial step [m, rad]");
+    v("ibas_theta", move_theta, "IBAS moves the heading too");
+    v("min_spread", min_spread, "inject diversity when the swarm spread falls below [m]");
+    v("ibas_resample", resample, "after the swarm, also resample when ESS/N < ess");
+    v("ibas_weights", weights,
+      "weights after the swarm: fitness (eq. 28), sequential (carried weight x likelihood) or "
+      "posterior (sequential x predicted-density ratio for the move)");
+  }
+};
+
+/// One sensor's share of an epoch.
+class EpochMeasurement {
+ public:
+  virtual ~EpochMeasurement() = default;
+  /// Takes `event` into the open epoch when it is this model's kind and usable; returns true
+  /// then (the epoch opens or stays open).
+  virtual bool take(const Event& event, EstimatorStatistics& stats) = 0;
+  /// Multiplies the particles' weights by the epoch's likelihood (in log space).
+  virtual void weight(ParticleFilter& pf, EstimatorStatistics& stats) = 0;
+  /// Adds the epoch's log-likelihood at one pose to `l` (the swarm's fitness).
+  virtual double addLogLikelihood(double l, double x, double y, double theta) const = 0;
+  /// Closes the epoch once the filter has its estimate.
+  virtual void endEpoch(const PoseEstimate& estimate) = 0;
+  /// Forgets the state after a re-initialisation.
+  virtual void reset() {}
+  virtual void addArtifacts(std::vector<std::pair<std::string, std::string>>&) const {}
+};
+
+/// Log-likelihood of the epoch's data at one pose, summed over the measurement models.
+using EpochFitness = std::function<double(double x, double y, double theta)>;
+
+/// What replaces the plain Bayes weights with a new particle set at the end of an epoch.
+class PosteriorStep {
+ public:
+  virtual ~PosteriorStep() = default;
+  /// Called before the epoch's measurements weight the particles.
+  virtual void beginEpoch(const ParticleFilter&) {}
+  virtual void apply(ParticleFilter& pf, const EpochFitness& fitness, double t,
+                     EstimatorStatistics& stats) = 0;
+  virtual void addArtifacts(std::vector<std::pair<std::string, std::string>>&) const {}
+};
+
+/// The LiDAR likelihood field on the map (needs a map); builds corner landmarks on request.
+class LidarFieldMeasurement final : public EpochMeasurement {
+ public:
+  LidarFieldMeasurement(const LidarPartParams& params, const OccupancyMap& map);
+  bool take(const Event& event, EstimatorStatistics& stats) override;
+  void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
+  double addLogLikelihood(double l, double x, double y, double theta) const override;
+  void endEpoch(const PoseEstimate& estimate) override;
+  void addArtifacts(std::vector<std::pair<std::string, std::string>>& out) const override;
+  const LandmarkMap& landmarkMap() const { return landmark_map_; }
+
+ private:
+  LidarPartParams params_;
+  LikelihoodField field_;
+  bool has_scan_ = false;
+  LaserScan scan_;  ///< kept only for corner extraction
+  LandmarkExtractionParams extraction_;
+  LandmarkMap landmark_map_;
+};
+
+/// UWB ranges: the front end's checks, the NLOS test of each range against the filter's pose
+/// after the epoch's other updates, and the Gaussian range likelihood (eq. 26, in logs).
+class UwbRangeMeasurement final : public EpochMeasurement {
+ public:
+  /// `map` is needed by the ray-cast test only, and used to record its decision when present.
+  UwbRangeMeasurement(const UwbPartParams& params, const std::vector<uwb::Anchor>& anchors,
+                      std::shared_ptr<const OccupancyMap> map);
+  bool take(const Event& event, EstimatorStatistics& stats) override;
+  void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
+  double addLogLikelihood(double l, double x, double y, double theta) const override;
+  void endEpoch(const PoseEstimate&) override { epoch_.clear(); }
+  void reset() override { nlos_streak_ = 0; }
+
+ private:
+  /// The NLOS test of one range against the estimate e; weights the particles when it is used.
+  void weightRange(ParticleFilter& pf, const AcceptedRange& r, const ParticleEstimate& e,
+                   EstimatorStatistics& stats);
+  bool suspended() const;
+
+  UwbPartParams params_;
+  RangeFrontEnd front_;
+  std::shared_ptr<const OccupancyMap> map_;
+  std::string nlos_reason_;  ///< "nlos_<test>", built once
+  std::vector<AcceptedRange> epoch_, used_;  ///< used_: the clean ones, for the swarm's fitness
+  int epoch_flagged_ = 0;  ///< ranges of the open epoch that failed the NLOS test
+  int nlos_streak_ = 0;    ///< epochs in a row in which most ranges failed it
+};
+
+/// Bayes weights, then resampling by the filter's strategy when ESS / N falls below its
+/// threshold (SIR).
+class ResamplingStep final : public PosteriorStep {
+ public:
+  void apply(ParticleFilter& pf, const EpochFitness&, double, EstimatorStatistics&) override {
+    pf.normalizeAndResample();
+  }
+};
+
+/// PF-IBAS: the improved beetle swarm moves the particles towards the epoch's fitness (eq. 26
+/// over the NLOS-cleaned ranges plus the LiDAR field); no particle is discarded, and each weight
+/// is the fitness at its moved position (eq. 28), by default times the weight it carried into the
+/// epoch. A collapsed swarm gets `min_spread` of jitter so that the estimate cannot freeze.
+class SwarmStep final : public PosteriorStep {
+ public:
+  explicit SwarmStep(const SwarmPartParams& params);
+  void beginEpoch(const ParticleFilter& pf) override;
+  void apply(ParticleFilter& pf, const EpochFitness& fitness, double t,
+             EstimatorStatistics& stats) override;
+  void addArtifacts(std::vector<std::pair<std::string, std::string>>& out) const override;
+
+ private:
+  /// Moves the particles; returns the planar spread of the moved swarm [m].
+  double move(ParticleFilter& pf, const EpochFitness& fitness);
+  /// The weights after the move (eq. 28 and the chosen variant).
+  void reweight(ParticleFilter& pf, const EpochFitness& fitness, double spread,
+                EstimatorStatistics& stats);
+
+  SwarmPartParams params_;
+  optim::BeetleSwarm swarm_;
+  Eigen::MatrixXd positions_, start_;  ///< start_: posterior weights only
+  ParticleEstimate predicted_;         ///< the cloud before this epoch's data (posterior)
+  std::vector<double> prior_log_w_;    ///< the weights before this epoch's data
+  optim::Box box_;                     ///< reused every epoch
+  std::string spread_log_;             ///< "t,spread_xy" rows
+};
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,128 @@
+#include "uwbloc/localization/methods/particle_localizer.hpp"
+
+#include <cmath>
+
+#include "uwbloc/localization/lidar/occupancy_map.hpp"
+
+namespace uwbloc::loc {
+
+namespace {
+ParticleFilterParams filterParams(const ParticleCoreParams& p) {
+  ParticleFilterParams f;
+  f.particles = p.particles;
+  f.ess_threshold = p.ess;
+  f.motion = p.motion;
+  f.initial_particles = p.init_n;
+  return f;
+}
+}  // namespace
+
+namespace detail {
+std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core,
+                                                  const EstimatorContext& context,
+                                                  const LidarPartParams* lidar,
+                                                  const UwbPartParams* uwb,
+                                                  const SwarmPartParams* swarm) {
+  std::vector<std::unique_ptr<EpochMeasurement>> measurements;
+  if (lidar) {
+    if (!context.map) throw ParamError("this method needs a map: give the manifest's [dataset] map");
+    measurements.push_back(std::make_unique<LidarFieldMeasurement>(*lidar, *context.map));
+  }
+  if (uwb)
+    measurements.push_back(
+        std::make_unique<UwbRangeMeasurement>(*uwb, context.anchors, context.map));
+  std::unique_ptr<PosteriorStep> posterior;
+  if (swarm)
+    posterior = std::make_unique<SwarmStep>(*swarm);
+  else
+    posterior = std::make_unique<ResamplingStep>();
+  return std::make_unique<ParticleLocalizer>(core, context, std::move(measurements),
+                                             std::move(posterior));
+}
+}  // namespace detail
+
+ParticleLocalizer::ParticleLocalizer(const ParticleCoreParams& core,
+                                     const EstimatorContext& context,
+                                     std::vector<std::unique_ptr<EpochMeasurement>> measurements,
+                                     std::unique_ptr<PosteriorStep> posterior)
+    : core_(core),
+      context_(context),
+      pf_(filterParams(core), makeResampler(core.resampler), context.seed),
+      measurements_(std::move(measurements)),
+      posterior_(std::move(posterior)),
+      fitness_([this](double x, double y, double th) { return epochLogLikelihood(x, y, th); }) {
+  if (core_.particles < 1) throw ParamError("parameter 'n' must be at least 1");
+  if (core_.init_n < 0) throw ParamError("parameter 'init_n' must be 0 or more");
+  if (core_.init == InitMode::kGlobal && !context.map)
+    throw ParamError("init=global needs a map: give the manifest's [dataset] map");
+  if (core_.init == InitMode::kTracking && !context.initial_pose)
+    throw ParamError("tracking initialisation needs a start pose (the dataset's ground truth)");
+}
+
+std::vector<std::pair<std::string, std::string>> ParticleLocalizer::artifacts() const {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& m : measurements_) m->addArtifacts(out);
+  posterior_->addArtifacts(out);
+  return out;
+}
+
+void ParticleLocalizer::initialise() {
+  for (auto& m : measurements_) m->reset();
+  if (core_.init == InitMode::kTracking) {
+    pf_.initUniformBox(*context_.initial_pose,
+                       {core_.init_xy, core_.init_xy, core_.init_theta_deg * M_PI / 180.0});
+  } else {
+    pf_.initUniform(context_.map->freeCells(), context_.map->resolution());
+  }
+}
+
+double ParticleLocalizer::epochLogLikelihood(double x, double y, double theta) const {
+  double l = 0.0;
+  for (const auto& m : measurements_) l = m->addLogLikelihood(l, x, y, theta);
+  return l;
+}
+
+std::optional<PoseEstimate> ParticleLocalizer::finishEpoch() {
+  epoch_open_ = false;
+  posterior_->beginEpoch(pf_);
+  for (auto& m : measurements_) m->weight(pf_, stats_);
+  posterior_->apply(pf_, fitness_, epoch_t_, stats_);
+  const ParticleEstimate e = pf_.estimate();
+  PoseEstimate est;
+  est.t = epoch_t_;
+  est.pose = e.mean;
+  est.covariance = e.covariance;
+  for (auto& m : measurements_) m->endEpoch(est);
+  return est;
+}
+
+std::optional<PoseEstimate> ParticleLocalizer::doFinish() {
+  if (epoch_open_) return finishEpoch();
+  return std::nullopt;
+}
+
+std::optional<PoseEstimate> ParticleLocalizer::doProcess(const Event& event) {
+  if (!pf_.initialised()) initialise();
+  const double t = eventTime(event);
+  std::optional<PoseEstimate> out;
+  // Any later event closes the open epoch.
+  if (epoch_open_ && t > epoch_t_) out = finishEpoch();
+  if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
+    if (!odo->delta.allFinite()) {
+      countRejection("non_finite_odometry");
+      return out;
+    }
+    if (epoch_open_) out = finishEpoch();  // motion at the epoch's own time: close it first
+    pf_.predict(odo->delta);
+    return out;
+  }
+  bool taken = false;
+  for (auto& m : measurements_) taken = taken || m->take(event, stats_);
+  if (taken && !epoch_open_) {
+    epoch_open_ = true;
+    epoch_t_ = t;
+  }
+  return out;
+}
+
+}  // namespace uwbloc::loc

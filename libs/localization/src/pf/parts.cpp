@@ -1,0 +1,274 @@
+#include "uwbloc/localization/pf/parts.hpp"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+
+#include "uwbloc/uwb/range_model.hpp"
+
+namespace uwbloc::loc {
+
+// ---------------------------------------------------------------- LiDAR likelihood field
+
+LidarFieldMeasurement::LidarFieldMeasurement(const LidarPartParams& params,
+                                             const OccupancyMap& map)
+    : params_(params), field_(map, params.field) {}
+
+bool LidarFieldMeasurement::take(const Event& event, EstimatorStatistics&) {
+  const auto* scan = std::get_if<LaserScan>(&event);
+  if (!scan) return false;
+  field_.setScan(*scan);
+  if (params_.landmarks) scan_ = *scan;  // kept only for corner extraction
+  has_scan_ = true;
+  return true;
+}
+
+void LidarFieldMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stats) {
+  if (!has_scan_) return;
+  if (field_.rays() == 0) {
+    countRejection(stats, "scan_without_returns");
+    return;
+  }
+  const LikelihoodField& f = field_;
+  pf.weight([&f](double x, double y, double th) { return f.logLikelihood(x, y, th); });
+}
+
+double LidarFieldMeasurement::addLogLikelihood(double l, double x, double y, double th) const {
+  return has_scan_ ? l + field_.logLikelihood(x, y, th) : l;
+}
+
+void LidarFieldMeasurement::endEpoch(const PoseEstimate& est) {
+  if (params_.landmarks && has_scan_) {
+    // Corners seen from the current estimate grow the landmark map.
+    const Eigen::Matrix2d r =
+        Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
+    for (const auto& c : extractCorners(extractLines(scan_, extraction_), extraction_))
+      landmark_map_.integrate(est.pose, est.covariance, c, r);
+  }
+  has_scan_ = false;
+}
+
+void LidarFieldMeasurement::addArtifacts(
+    std::vector<std::pair<std::string, std::string>>& out) const {
+  if (params_.landmarks && !landmark_map_.landmarks().empty())
+    out.emplace_back("landmarks.csv", landmark_map_.toCsv());
+}
+
+// ---------------------------------------------------------------- UWB ranges
+
+UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
+                                         const std::vector<uwb::Anchor>& anchors,
+                                         std::shared_ptr<const OccupancyMap> map)
+    : params_(params),
+      front_(params.front, anchors),
+      map_(std::move(map)),
+      nlos_reason_(std::string("nlos_") + enumName(params.nlos)) {
+  if (params_.nlos == NlosTest::kRaycast && !map_)
+    throw ParamError("nlos=raycast needs a map: give the manifest's [dataset] map");
+}
+
+bool UwbRangeMeasurement::take(const Event& event, EstimatorStatistics& stats) {
+  const auto* range = std::get_if<uwb::Range>(&event);
+  if (!range) return false;
+  uwb::RejectReason reason{};
+  auto accepted = front_.accept(*range, &reason);
+  if (!accepted) {
+    countRejection(stats, uwb::toString(reason), range->anchor_id);
+    return false;
+  }
+  ++stats.accepted_ranges;
+  epoch_.push_back(*accepted);
+  return true;
+}
+
+bool UwbRangeMeasurement::suspended() const {
+  return params_.nlos_suspend > 0 && nlos_streak_ >= params_.nlos_suspend;
+}
+
+void UwbRangeMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stats) {
+  used_.clear();
+  if (epoch_.empty()) return;
+  // The NLOS test uses the estimate after the motion and the epoch's other updates (LiDAR).
+  pf.normalize();
+  const ParticleEstimate e = pf.estimate();
+  epoch_flagged_ = 0;
+  if (suspended()) ++stats.events["nlos_test_suspended"];
+  for (const auto& r : epoch_) weightRange(pf, r, e, stats);
+  const auto ranges = static_cast<int>(epoch_.size());
+  nlos_streak_ = epoch_flagged_ >= 2 && 2 * epoch_flagged_ > ranges ? nlos_streak_ + 1 : 0;
+}
+
+void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r,
+                                      const ParticleEstimate& e, EstimatorStatistics& stats) {
+  const Eigen::Vector3d& tag = r.measurement.tag_on_robot;
+  const double d = r.measurement.range;
+  Eigen::RowVector3d j;
+  const double d_hat = uwb::predictRange(e.mean, tag, r.anchor, &j);
+  const double sigma = params_.front.sigma;
+  // The pose test: innovation d - d̂ against S = sigma^2 + J P J^T, gated at k sigma.
+  const double s = sigma * sigma + (j * e.covariance * j.transpose())(0, 0);
+  RangeDecision dec;
+  dec.t = r.measurement.t;
+  dec.anchor_id = r.measurement.anchor_id;
+  dec.range = d;
+  dec.flag_pose = !uwb::ChiSquareGate(params_.nlos_k * params_.nlos_k).accept(d - d_hat, s);
+  if (map_) {
+    const Eigen::Vector3d tag_world = uwb::tagPosition(e.mean, tag);
+    dec.flag_raycast =
+        map_->segmentBlocked(tag_world.head<2>(), r.anchor.head<2>(), 1.5 * map_->resolution());
+  }
+  const bool failed = (params_.nlos == NlosTest::kPose && dec.flag_pose) ||
+                      (params_.nlos == NlosTest::kRaycast && dec.flag_raycast);
+  epoch_flagged_ += failed;
+  const bool flagged = failed && !suspended();
+  double sig = sigma;
+  if (flagged) {
+    countRejection(stats, nlos_reason_, dec.anchor_id);
+    if (params_.nlos_action == NlosAction::kReject) {
+      stats.range_decisions.push_back(dec);
+      return;
+    }
+    sig *= params_.downweight;
+  }
+  dec.used = true;
+  stats.range_decisions.push_back(dec);
+  if (sig == sigma) used_.push_back(r);  // the swarm's fitness uses the clean ones
+  const double inv2 = 1.0 / (2.0 * sig * sig);
+  const Eigen::Vector3d anchor = r.anchor;
+  pf.weight([&](double x, double y, double th) {
+    const double h = uwb::predictRange({x, y, th}, tag, anchor);
+    return -(d - h) * (d - h) * inv2;  // eq. (26), in logs
+  });
+}
+
+double UwbRangeMeasurement::addLogLikelihood(double l, double x, double y, double theta) const {
+  const double inv2 = 1.0 / (2.0 * params_.front.sigma * params_.front.sigma);
+  for (const auto& r : used_) {
+    const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
+    l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs
+  }
+  return l;
+}
+
+// ---------------------------------------------------------------- the beetle swarm
+
+SwarmStep::SwarmStep(const SwarmPartParams& params) : params_(params) {
+  box_ = optim::Box{Eigen::VectorXd(3), Eigen::VectorXd(3)};
+  optim::IbasParams ibas;
+  ibas.frame_invariant_mutation = true;  // eq. (25) as printed scales with the map coordinates
+  ibas.antenna = params_.step;
+  ibas.random_tie_direction = false;  // a flat epoch fitness carries no information
+  ibas.move_mask = Eigen::Vector3d(1.0, 1.0, params_.move_theta ? 1.0 : 0.0);
+  swarm_ = optim::BeetleSwarm(ibas);
+}
+
+void SwarmStep::beginEpoch(const ParticleFilter& pf) {
+  if (params_.weights == SwarmWeights::kFitness) return;
+  prior_log_w_ = pf.particles().log_w;
+  if (params_.weights == SwarmWeights::kPosterior) predicted_ = pf.estimate();
+}
+
+void SwarmStep::apply(ParticleFilter& pf, const EpochFitness& fitness, double t,
+                      EstimatorStatistics& stats) {
+  pf.normalize();
+  const double spread = move(pf, fitness);
+  char row[64];
+  std::snprintf(row, sizeof row, "%.6f,%.5f\n", t, spread);
+  spread_log_ += row;
+  reweight(pf, fitness, spread, stats);
+  pf.normalize();
+  if (params_.resample) pf.normalizeAndResample();
+}
+
+double SwarmStep::move(ParticleFilter& pf, const EpochFitness& fitness) {
+  ParticleSet& ps = pf.particles();
+  const auto n = static_cast<Eigen::Index>(ps.size());
+  const ParticleEstimate e = pf.estimate();
+  positions_.resize(n, 3);  // the heading is always part of the fitness; move_theta moves it
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto u = static_cast<size_t>(i);
+    positions_(i, 0) = ps.x[u];
+    positions_(i, 1) = ps.y[u];
+    // Headings unwrapped around the mean, so the search box does not straddle +-pi.
+    positions_(i, 2) = e.mean.z() + wrapAngle(ps.theta[u] - e.mean.z());
+  }
+  // Search box: the cloud's extent, at least 0.3 m (0.2 rad) around the mean.
+  for (Eigen::Index c = 0; c < 3; ++c) {
+    const double half =
+        std::max(3.0 * std::sqrt(std::max(e.covariance(c, c), 0.0)), c == 2 ? 0.2 : 0.3);
+    box_.lo(c) = std::min(e.mean(c) - half, positions_.col(c).minCoeff());
+    box_.hi(c) = std::max(e.mean(c) + half, positions_.col(c).maxCoeff());
+  }
+  const optim::Objective objective = [&](const Eigen::Ref<const Eigen::VectorXd>& q) {
+    return fitness(q(0), q(1), q(2));
+  };
+  long evals = 0;
+  double best = 0.0;
+  if (params_.weights == SwarmWeights::kPosterior) start_ = positions_;
+  swarm_.maximize(positions_, objective, box_, params_.iterations, params_.step, pf.rng(), &best,
+                  &evals);
+  double mx = 0, my = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto u = static_cast<size_t>(i);
+    ps.x[u] = positions_(i, 0);
+    ps.y[u] = positions_(i, 1);
+    ps.theta[u] = wrapAngle(positions_(i, 2));
+    mx += ps.x[u] / n;
+    my += ps.y[u] / n;
+  }
+  double var = 0;
+  for (size_t i = 0; i < ps.size(); ++i)
+    var += (std::pow(ps.x[i] - mx, 2) + std::pow(ps.y[i] - my, 2)) / n;
+  return std::sqrt(var);
+}
+
+void SwarmStep::reweight(ParticleFilter& pf, const EpochFitness& fitness, double spread,
+                         EstimatorStatistics& stats) {
+  ParticleSet& ps = pf.particles();
+  // Eq. (28): the weights are the fitness at the moved positions, normalised. The swarm has
+  // already evaluated it there; only particles moved again by a diversity injection need it anew.
+  const Eigen::VectorXd& fitness_at = swarm_.values();
+  if (spread < params_.min_spread) {
+    // Diversity: a collapsed swarm would freeze the estimate.
+    std::normal_distribution<double> g(0.0, params_.min_spread);
+    for (size_t i = 0; i < ps.size(); ++i) {
+      ps.x[i] += g(pf.rng());
+      ps.y[i] += g(pf.rng());
+      ps.log_w[i] = fitness(ps.x[i], ps.y[i], ps.theta[i]);
+    }
+    ++stats.events["swarm_diversity_injection"];
+  } else {
+    for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] = fitness_at(static_cast<Eigen::Index>(i));
+  }
+  if (params_.weights == SwarmWeights::kFitness) return;
+  // Sequential importance weights: the weight each particle carried into this epoch (its
+  // history since the last resampling) times the epoch's likelihood.
+  for (size_t i = 0; i < ps.size(); ++i) ps.log_w[i] += prior_log_w_[i];
+  if (params_.weights != SwarmWeights::kPosterior) return;
+  // And the predicted density's ratio between where the swarm left each particle and where the
+  // motion model put it (the heading only when the swarm moves it: otherwise its rows of the
+  // information matrix stay zero).
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  if (params_.move_theta)
+    info = (predicted_.covariance + 1e-6 * Eigen::Matrix3d::Identity()).inverse();
+  else
+    info.topLeftCorner<2, 2>() =
+        (predicted_.covariance.topLeftCorner<2, 2>() + 1e-6 * Eigen::Matrix2d::Identity())
+            .inverse();
+  const auto offset = [&](double x, double y, double th) {
+    const Eigen::Vector3d d(x - predicted_.mean.x(), y - predicted_.mean.y(),
+                            wrapAngle(th - predicted_.mean.z()));
+    return 0.5 * d.dot(info * d);
+  };
+  for (size_t i = 0; i < ps.size(); ++i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    ps.log_w[i] += offset(start_(r, 0), start_(r, 1), start_(r, 2)) -
+                   offset(ps.x[i], ps.y[i], ps.theta[i]);
+  }
+}
+
+void SwarmStep::addArtifacts(std::vector<std::pair<std::string, std::string>>& out) const {
+  if (!spread_log_.empty()) out.emplace_back("swarm_spread.csv", "t,spread_xy\n" + spread_log_);
+}
+
+}  // namespace uwbloc::loc
