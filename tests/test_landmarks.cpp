@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/lidar/occupancy_map.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -63,15 +64,15 @@ TEST_P(ObservationJacobians, MatchNumeric) {
 INSTANTIATE_TEST_SUITE_P(Cases, ObservationJacobians, ::testing::Range(0, 3));
 
 TEST(Landmarks, CornersOfARoomAndConsistentAssociation) {
-  const auto map = OccupancyMap::fromRectangles({0, 0, 6, 4}, {}, 0.02);
-  auto lidar = LidarParams::preset("rplidar_a2");
+  const auto map = uwbloc::data::mapFromRectangles({0, 0, 6, 4}, {}, 0.02);
+  auto lidar = uwbloc::data::LidarParams::preset("rplidar_a2");
   lidar.rays = 720;
   LandmarkExtractionParams p;
   LandmarkMap lm;
   const Eigen::Vector2d room_corners[] = {{0, 0}, {6, 0}, {6, 4}, {0, 4}};
   for (const Eigen::Vector3d& pose :
        {Eigen::Vector3d(2.0, 1.5, 0.4), Eigen::Vector3d(3.5, 2.2, -1.0)}) {
-    const auto scan = map.castScan(pose, lidar);
+    const auto scan = uwbloc::data::castScan(map, pose, lidar);
     const auto lines = extractLines(scan, p);
     EXPECT_GE(lines.size(), 4u);
     const auto corners = extractCorners(lines, p);
@@ -99,14 +100,14 @@ TEST(LidarIcp, RecoversAKnownTransform) {
   // Two scans of an L-shaped room 0.30 m and 0.1 rad apart; the odometry guess is off by
   // (0.1 m, -0.05 m, 0.05 rad).
   const auto map =
-      OccupancyMap::fromRectangles({0, 0, 8, 6}, {{4, 3, 8, 6}, {1, 1, 1.5, 1.8}}, 0.02);
-  auto lidar = LidarParams::preset("sick_lms");
+      uwbloc::data::mapFromRectangles({0, 0, 8, 6}, {{4, 3, 8, 6}, {1, 1, 1.5, 1.8}}, 0.02);
+  auto lidar = uwbloc::data::LidarParams::preset("sick_lms");
   const Eigen::Vector3d a(2.0, 2.0, 0.2), truth(0.30, 0.05, 0.1);
   const Eigen::Vector3d b = composePose(a, truth);
   EstimatorContext ctx;
   ctx.initial_pose = a;
   auto icp = Registry::builtin().create("lidar-icp", ctx);
-  LaserScan s1 = map.castScan(a, lidar), s2 = map.castScan(b, lidar);
+  LaserScan s1 = uwbloc::data::castScan(map, a, lidar), s2 = uwbloc::data::castScan(map, b, lidar);
   s1.t = 1.0;
   s2.t = 2.0;
   ASSERT_TRUE(icp->process(s1));

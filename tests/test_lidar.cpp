@@ -2,6 +2,7 @@
 // ray-cast detector on constructed segments.
 #include <gtest/gtest.h>
 
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/evaluation/nlos_score.hpp"
 #include "uwbloc/evaluation/report.hpp"
@@ -63,7 +64,7 @@ TEST(MrptDemo, GlobalInitialisationConverges) {
 }
 
 TEST(RayCastDetector, FlagsABlockedSegmentAndPassesAClearOne) {
-  const auto map = loc::OccupancyMap::fromRectangles({0, 0, 10, 10}, {{4.9, 2, 5.1, 8}}, 0.05);
+  const auto map = uwbloc::data::mapFromRectangles({0, 0, 10, 10}, {{4.9, 2, 5.1, 8}}, 0.05);
   EXPECT_TRUE(map.segmentBlocked({2, 5}, {8, 5}));           // through the wall
   EXPECT_FALSE(map.segmentBlocked({2, 1}, {8, 1}));          // below it
   EXPECT_FALSE(map.segmentBlocked({2, 5}, {2, 9}));          // same side

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
 #include "uwbloc/localization/pf/particle_filter.hpp"
 
@@ -132,7 +133,7 @@ TEST(ParticleFilter, MotionModelMovesTheCloudByTheIncrement) {
 }
 
 TEST(LikelihoodField, DistancesAndPeakAtTheTruePose) {
-  const auto map = OccupancyMap::fromRectangles({0, 0, 10, 6}, {{4, 2, 5, 3}}, 0.05);
+  const auto map = uwbloc::data::mapFromRectangles({0, 0, 10, 6}, {{4, 2, 5, 3}}, 0.05);
   LikelihoodFieldParams params;
   params.max_dist = 1.0;
   params.decimation = 4;
@@ -141,7 +142,7 @@ TEST(LikelihoodField, DistancesAndPeakAtTheTruePose) {
   EXPECT_NEAR(field.distance(4.5, 3.4), 0.4, 0.06);  // above the obstacle
   EXPECT_NEAR(field.distance(2.0, 3.0), 1.0, 1e-9);  // capped
   const Eigen::Vector3d truth(2.0, 2.5, 0.3);
-  field.setScan(map.castScan(truth, LidarParams::preset("sick_lms")));
+  field.setScan(uwbloc::data::castScan(map, truth, uwbloc::data::LidarParams::preset("sick_lms")));
   ASSERT_GT(field.rays(), 50u);
   const double at_truth = field.logLikelihood(truth.x(), truth.y(), truth.z());
   for (const Eigen::Vector3d& d :

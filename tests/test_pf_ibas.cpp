@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "simulated_scenario.hpp"
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "test_helpers.hpp"
@@ -20,7 +21,7 @@ namespace {
 
 struct Rig {
   std::shared_ptr<loc::OccupancyMap> map = std::make_shared<loc::OccupancyMap>(
-      loc::OccupancyMap::fromRectangles({0, 0, 8, 8}, {{3, 3, 4, 4}}, 0.05));
+      uwbloc::data::mapFromRectangles({0, 0, 8, 8}, {{3, 3, 4, 4}}, 0.05));
   loc::EstimatorContext ctx;
   Rig(std::vector<uwb::Anchor> anchors) {
     ctx.map = map;

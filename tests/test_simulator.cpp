@@ -9,6 +9,8 @@
 #include <sstream>
 
 #include "test_helpers.hpp"
+#include "lidar/mrpt_grid.hpp"
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/scenario.hpp"
 #include "uwbloc/dataset/simulator.hpp"
@@ -106,10 +108,10 @@ TEST(Simulator, NlosBiasOnlyOnOccludedSegments) {
 }
 
 TEST(Simulator, RayCastScanHitsAKnownWall) {
-  const auto map = loc::OccupancyMap::fromRectangles({0, 0, 10, 10}, {{6, 4, 7, 6}}, 0.05);
-  loc::LidarParams lidar = loc::LidarParams::preset("sick_lms");
+  const auto map = uwbloc::data::mapFromRectangles({0, 0, 10, 10}, {{6, 4, 7, 6}}, 0.05);
+  uwbloc::data::LidarParams lidar = uwbloc::data::LidarParams::preset("sick_lms");
   lidar.sensor_pose << 0.1, 0.0, 0.0;
-  const auto scan = map.castScan({2.0, 5.0, 0.0}, lidar);
+  const auto scan = uwbloc::data::castScan(map, {2.0, 5.0, 0.0}, lidar);
   ASSERT_EQ(scan.ranges.size(), 361u);
   const size_t ahead = 180, left = 360, right = 0;
   // Straight ahead: the obstacle's face at x = 6, from the sensor at x = 2.1.
@@ -234,7 +236,7 @@ TEST(OccupancyMap, LoadsRosYamlPngAndGridmap) {
   yaml.save(gridmap);
   check(loc::OccupancyMap::load(gridmap), "gridmap");
   const auto png = (dir / "office.png").string();
-  ASSERT_TRUE(yaml.grid().saveAsBitmapFile(png));
+  ASSERT_TRUE(loc::MrptGridAccess::grid(yaml).saveAsBitmapFile(png));
   check(loc::OccupancyMap::load(png, 0.05, {yaml.bounds().xmin, yaml.bounds().ymin}), "png");
   test::expectErrorMentions<std::runtime_error>(
       [&] { loc::OccupancyMap::load((dir / "none.png").string()); }, {"none.png", "not found"});

@@ -90,9 +90,7 @@ ImportSummary importCarmen(const std::string& log_path, const std::string& out_d
     }
   }
   if (reference.empty()) throwInputError(log_path, 0, "no FLASER lines");
-  std::stable_sort(events.begin(), events.end(), [](const loc::Event& a, const loc::Event& b) {
-    return loc::eventTime(a) < loc::eventTime(b);
-  });
+  loc::sortByTime(events);
   std::stable_sort(reference.begin(), reference.end(),
                    [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
 

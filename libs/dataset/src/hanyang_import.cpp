@@ -109,9 +109,7 @@ ImportSummary importHanyang(const std::string& run_dir, const std::string& out_d
       throwInputError(file, 0, "anchor id " + std::to_string(anchor.id) + " appears twice");
     anchors.push_back(anchor);
   }
-  std::stable_sort(events.begin(), events.end(), [](const loc::Event& a, const loc::Event& b) {
-    return loc::eventTime(a) < loc::eventTime(b);
-  });
+  loc::sortByTime(events);
   std::stable_sort(features.begin(), features.end(),
                    [](const FeatureRow& a, const FeatureRow& b) { return a.t < b.t; });
 

@@ -58,9 +58,7 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
     events.emplace_back(r);
     ++ranges;
   });
-  std::stable_sort(events.begin(), events.end(), [](const loc::Event& a, const loc::Event& b) {
-    return loc::eventTime(a) < loc::eventTime(b);
-  });
+  loc::sortByTime(events);
   const auto gt = readGroundTruth(file("_GT.txt"), GroundTruthFormat::kTimeXyPhi);
 
   ensureDirectory(out_dir);

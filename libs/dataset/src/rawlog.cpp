@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <filesystem>
 
+#include "mrpt_scan.hpp"
 #include "uwbloc/dataset/errors.hpp"
 
 namespace uwbloc::data {
@@ -62,21 +63,7 @@ class Converter {
       }
       ++rec_.counts["beacon_observations"];
     } else if (const auto* s = dynamic_cast<const mrpt::obs::CObservation2DRangeScan*>(&obs)) {
-      loc::LaserScan scan;
-      scan.t = t;
-      scan.sensor_pose << s->sensorPose.x(), s->sensorPose.y(), s->sensorPose.yaw();
-      scan.sensor_height = s->sensorPose.z();
-      const size_t n = s->getScanSize();
-      scan.angle_min = static_cast<float>(s->rightToLeft ? -s->aperture / 2 : s->aperture / 2);
-      scan.angle_increment =
-          n > 1 ? static_cast<float>((s->rightToLeft ? 1 : -1) * s->aperture / (n - 1)) : 0.0f;
-      scan.max_range = s->maxRange;
-      scan.ranges.resize(n);
-      scan.valid.resize(n);
-      for (size_t i = 0; i < n; ++i) {
-        scan.ranges[i] = s->getScanRange(i);
-        scan.valid[i] = s->getScanRangeValidity(i) ? 1 : 0;
-      }
+      loc::LaserScan scan = fromMrpt(*s, t);
       rec_.events.emplace_back(std::move(scan));
       ++rec_.counts["scans"];
     } else if (const auto* imu = dynamic_cast<const mrpt::obs::CObservationIMU*>(&obs)) {
@@ -134,10 +121,7 @@ class Converter {
 
   void finish() {
     if (pending_action_) rec_.events.emplace_back(*pending_action_);  // trailing action
-    std::stable_sort(rec_.events.begin(), rec_.events.end(),
-                     [](const loc::Event& a, const loc::Event& b) {
-                       return loc::eventTime(a) < loc::eventTime(b);
-                     });
+    loc::sortByTime(rec_.events);
   }
 
   void observationOnly(const CObservation& obs) {
@@ -252,20 +236,9 @@ void writeRawlog(const std::string& path, const std::vector<loc::Event>& events)
         obs.set(mrpt::obs::IMU_YAW_VEL, imu->gyro_z);
         archive << obs;
       } else if (const auto* s = std::get_if<loc::LaserScan>(&e)) {
-        mrpt::obs::CObservation2DRangeScan obs;
+        mrpt::obs::CObservation2DRangeScan obs = toMrpt(*s);
         obs.timestamp = mrpt::Clock::fromDouble(s->t);
         obs.sensorLabel = "LIDAR";
-        obs.sensorPose = mrpt::poses::CPose3D(s->sensor_pose.x(), s->sensor_pose.y(),
-                                              s->sensor_height, s->sensor_pose.z(), 0, 0);
-        const size_t n = s->ranges.size();
-        obs.resizeScan(n);
-        obs.rightToLeft = s->angle_increment >= 0.0f;
-        obs.aperture = std::abs(s->angle_increment) * static_cast<float>(n > 1 ? n - 1 : 1);
-        obs.maxRange = s->max_range;
-        for (size_t i = 0; i < n; ++i) {
-          obs.setScanRange(i, s->ranges[i]);
-          obs.setScanRangeValidity(i, s->valid[i] != 0);
-        }
         archive << obs;
       }
     }

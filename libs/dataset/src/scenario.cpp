@@ -159,7 +159,7 @@ std::optional<loc::OccupancyMap> scenarioMap(const Scenario& s) {
     }
   }
   if (s.bounds)
-    return loc::OccupancyMap::fromRectangles(*s.bounds, s.obstacles, s.map_resolution, s.walls);
+    return mapFromRectangles(*s.bounds, s.obstacles, s.map_resolution, s.walls);
   return std::nullopt;
 }
 
@@ -256,7 +256,7 @@ Scenario loadScenario(const std::string& path) {
     s.lidar.enabled = *preset != "none";
     if (s.lidar.enabled) {
       try {
-        s.lidar.params = loc::LidarParams::preset(*preset);
+        s.lidar.params = LidarParams::preset(*preset);
       } catch (const std::runtime_error& e) {
         throwInputError(path, ini.lineOf("lidar", "preset"), e.what());
       }

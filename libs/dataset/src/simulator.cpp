@@ -10,6 +10,7 @@
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/uwb/range_model.hpp"
 
 namespace fs = std::filesystem;
 
@@ -86,10 +87,6 @@ class RangeModel {
   Rng& rng_;
 };
 
-Eigen::Vector3d tagWorld(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag) {
-  const double c = std::cos(pose.z()), s = std::sin(pose.z());
-  return {pose.x() + c * tag.x() - s * tag.y(), pose.y() + s * tag.x() + c * tag.y(), tag.z()};
-}
 
 std::string fmt(const char* f, double a) {
   char buf[64];
@@ -144,7 +141,7 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
       const double t = k / rate + offset;
       if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
       const Eigen::Vector3d pose = robot.pose(t);
-      model.measure(t0 + t, 0, tagWorld(pose, s.uwb.tag), s.anchors[i], s.uwb.tag, sim.events,
+      model.measure(t0 + t, 0, uwb::tagPosition(pose, s.uwb.tag), s.anchors[i], s.uwb.tag, sim.events,
                     &sim.range_truth);
       if (tag2) {
         const Eigen::Vector3d p2 = tag2->pose(t);
@@ -153,7 +150,7 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
         model.measure(t0 + t, 1, tag2_world, s.anchors[i], on_tag2, sim.events, &sim.range_truth);
         if (i == 0) {  // once per round: the robot's tag ranges to the second tag
           const uwb::Anchor mobile{uwb::kMobileAnchorBase + 1, tag2_world};
-          model.measure(t0 + t, 0, tagWorld(pose, s.uwb.tag), mobile, s.uwb.tag, sim.events,
+          model.measure(t0 + t, 0, uwb::tagPosition(pose, s.uwb.tag), mobile, s.uwb.tag, sim.events,
                         &sim.range_truth);
         }
       }
@@ -199,9 +196,7 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
       const double span = t - h < 0.0 ? h : 2.0 * h;
       const Eigen::Vector2d acc_world =
           (pp.head<2>() - 2.0 * p0.head<2>() + robot.pose(t - h).head<2>()) / (h * h);
-      const double c = std::cos(p0.z()), sn = std::sin(p0.z());
-      const Eigen::Vector2d acc_body(c * acc_world.x() + sn * acc_world.y(),
-                                     -sn * acc_world.x() + c * acc_world.y());
+      const Eigen::Vector2d acc_body = rotation(p0.z()).transpose() * acc_world;
       const double yaw_rate = loc::wrapAngle(pp.z() - pm.z()) / span;
       accel_bias +=
           s.imu.accel_bias_walk * std::sqrt(dt) * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
@@ -221,7 +216,7 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
     const auto n = static_cast<long>(std::floor(s.duration * s.lidar.rate + 1e-9));
     for (long k = 0; k <= n; ++k) {
       const double t = k / s.lidar.rate;
-      loc::LaserScan scan = world->castScan(robot.pose(t), s.lidar.params);
+      loc::LaserScan scan = castScan(*world, robot.pose(t), s.lidar.params);
       scan.t = t0 + t;
       for (size_t i = 0; i < scan.ranges.size(); ++i) {
         const double g = n01(rng_lidar);
@@ -232,10 +227,7 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
     }
   }
 
-  std::stable_sort(sim.events.begin(), sim.events.end(),
-                   [](const loc::Event& a, const loc::Event& b) {
-                     return loc::eventTime(a) < loc::eventTime(b);
-                   });
+  loc::sortByTime(sim.events);
   return sim;
 }
 
@@ -266,12 +258,10 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
       const double w = (t - a.t) / (b.t - a.t);
       Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
       pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
-      model.measure(t, 0, tagWorld(pose, uwb.tag), anchors[i], uwb.tag, out, truth);
+      model.measure(t, 0, uwb::tagPosition(pose, uwb.tag), anchors[i], uwb.tag, out, truth);
     }
   }
-  std::stable_sort(out.begin(), out.end(), [](const loc::Event& x, const loc::Event& y) {
-    return loc::eventTime(x) < loc::eventTime(y);
-  });
+  loc::sortByTime(out);
   return out;
 }
 
@@ -299,7 +289,7 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
       scans.push_back(scan);
       poses.push_back(reference[j].pose);
     }
-    map = loc::OccupancyMap::fromScans(scans, poses, req.map_resolution);
+    map = mapFromScans(scans, poses, req.map_resolution);
   } else if (!req.map.empty()) {
     try {
       map = loc::OccupancyMap::load(req.map);

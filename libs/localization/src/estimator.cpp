@@ -1,25 +1,13 @@
 #include "uwbloc/localization/estimator.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace uwbloc::loc {
 
-Eigen::Vector3d composePose(const Eigen::Vector3d& pose, const Eigen::Vector3d& delta) {
-  const double c = std::cos(pose.z()), s = std::sin(pose.z());
-  return {pose.x() + c * delta.x() - s * delta.y(), pose.y() + s * delta.x() + c * delta.y(),
-          wrapAngle(pose.z() + delta.z())};
-}
-
-Eigen::Vector3d relativePose(const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
-  const double c = std::cos(from.z()), s = std::sin(from.z());
-  const Eigen::Vector2d d = to.head<2>() - from.head<2>();
-  return {c * d.x() + s * d.y(), -s * d.x() + c * d.y(), wrapAngle(to.z() - from.z())};
-}
-
-double wrapAngle(double a) {
-  a = std::fmod(a + M_PI, 2.0 * M_PI);
-  if (a <= 0.0) a += 2.0 * M_PI;
-  return a - M_PI;
+void sortByTime(std::vector<Event>& events) {
+  std::stable_sort(events.begin(), events.end(),
+                   [](const Event& a, const Event& b) { return eventTime(a) < eventTime(b); });
 }
 
 std::optional<PoseEstimate> Estimator::process(const Event& event) {

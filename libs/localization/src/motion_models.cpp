@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "uwbloc/uwb/pose2.hpp"
+
 namespace uwbloc::loc {
 
 void constantVelocityModel(double dt, double q, Eigen::Matrix4d& f, Eigen::Matrix4d& qd,
@@ -30,9 +32,7 @@ double HeadingFromMotion::update(const Eigen::Vector2d& velocity) {
 
 Eigen::Vector2d robotFromTag(const Eigen::Vector2d& tag, const Eigen::Vector3d& tag_on_robot,
                              double heading) {
-  const double c = std::cos(heading), s = std::sin(heading);
-  return {tag.x() - (c * tag_on_robot.x() - s * tag_on_robot.y()),
-          tag.y() - (s * tag_on_robot.x() + c * tag_on_robot.y())};
+  return tag - rotation(heading) * tag_on_robot.head<2>();
 }
 
 }  // namespace uwbloc::loc

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "uwbloc/uwb/pose2.hpp"
+
 namespace uwbloc::uwb {
 
 std::optional<double> projectToPlane(double d, double dz) {
@@ -12,9 +14,8 @@ std::optional<double> projectToPlane(double d, double dz) {
 }
 
 Eigen::Vector3d tagPosition(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag_on_robot) {
-  const double c = std::cos(pose.z()), s = std::sin(pose.z());
-  return {pose.x() + c * tag_on_robot.x() - s * tag_on_robot.y(),
-          pose.y() + s * tag_on_robot.x() + c * tag_on_robot.y(), tag_on_robot.z()};
+  const Eigen::Vector2d xy = transformPoint(pose, tag_on_robot.head<2>());
+  return {xy.x(), xy.y(), tag_on_robot.z()};
 }
 
 double predictRange(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag_on_robot,
@@ -27,11 +28,9 @@ double predictRange(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag_on_r
     if (h < 1e-12) {
       jacobian->setZero();
     } else {
-      const double c = std::cos(pose.z()), s = std::sin(pose.z());
-      // d(tag_xy)/d(theta) = R'(theta) * lever
-      const double dtx = -s * tag_on_robot.x() - c * tag_on_robot.y();
-      const double dty = c * tag_on_robot.x() - s * tag_on_robot.y();
-      (*jacobian) << diff.x() / h, diff.y() / h, (diff.x() * dtx + diff.y() * dty) / h;
+      // d(tag_xy)/d(theta) = R'(theta) lever = R(theta + pi/2) lever.
+      const Eigen::Vector2d dt = rotation(pose.z() + M_PI_2) * tag_on_robot.head<2>();
+      (*jacobian) << diff.x() / h, diff.y() / h, (diff.x() * dt.x() + diff.y() * dt.y()) / h;
     }
   }
   return h;

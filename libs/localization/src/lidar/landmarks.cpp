@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "uwbloc/localization/kalman/kalman.hpp"
 
@@ -45,23 +46,20 @@ std::vector<LineSegment> extractLines(const LaserScan& scan, const LandmarkExtra
   std::vector<Eigen::Vector2d> pts;
   pts.reserve(scan.ranges.size());
   std::vector<LineSegment> out;
-  const double cs = std::cos(scan.sensor_pose.z()), ss = std::sin(scan.sensor_pose.z());
   auto flush = [&] {
     if (!pts.empty()) splitRun(pts, 0, pts.size() - 1, p, out);
     pts.clear();
   };
-  for (size_t i = 0; i < scan.ranges.size(); ++i) {
-    const double r = scan.ranges[i];
-    if (!scan.valid[i] || r > p.max_range || r <= 0.0) {
-      flush();
-      continue;
-    }
-    const double a = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
-    const Eigen::Vector2d q(scan.sensor_pose.x() + cs * r * std::cos(a) - ss * r * std::sin(a),
-                            scan.sensor_pose.y() + ss * r * std::cos(a) + cs * r * std::sin(a));
-    if (!pts.empty() && (q - pts.back()).norm() > p.gap) flush();
-    pts.push_back(q);
-  }
+  // A run of consecutive returns; a ray without one (a skipped index) ends the run.
+  size_t next = 0;
+  forEachScanEndpoint(scan, 1, std::numeric_limits<double>::min(),
+                      std::nextafter(p.max_range, HUGE_VAL),
+                      [&](size_t i, const Eigen::Vector2d& q) {
+                        if (i != next || (!pts.empty() && (q - pts.back()).norm() > p.gap))
+                          flush();
+                        pts.push_back(q);
+                        next = i + 1;
+                      });
   flush();
   // Merge: adjacent segments that are nearly collinear and touch become one.
   std::vector<LineSegment> merged;
@@ -104,11 +102,8 @@ Eigen::Vector2d observeLandmarkXy(const Eigen::Vector3d& pose, const Eigen::Vect
                                   Eigen::Matrix<double, 2, 3>* j_pose,
                                   Eigen::Matrix2d* j_landmark) {
   // Eq. (5): x_L = R(theta)^T (x_m - t).
-  const double c = std::cos(pose.z()), s = std::sin(pose.z());
-  const Eigen::Vector2d d = landmark - pose.head<2>();
-  Eigen::Matrix2d rt;
-  rt << c, s, -s, c;
-  const Eigen::Vector2d z = rt * d;
+  const Eigen::Matrix2d rt = rotation(pose.z()).transpose();
+  const Eigen::Vector2d z = inverseTransformPoint(pose, landmark);
   if (j_landmark) *j_landmark = rt;
   if (j_pose) {
     // d/dt = -R^T; d/dtheta = dR^T/dtheta d = [-s c; -c -s] d = (z.y, -z.x).
@@ -159,16 +154,14 @@ int LandmarkMap::integrate(const Eigen::Vector3d& pose, const Eigen::Matrix3d& p
   }
   if (best < 0) {
     // New landmark: x_m = t + R z, covariance from the pose and the observation.
-    const double c = std::cos(pose.z()), s = std::sin(pose.z());
-    Eigen::Matrix2d r;
-    r << c, -s, s, c;
+    const Eigen::Matrix2d r = rotation(pose.z());
     Landmark lm;
     lm.id = static_cast<int>(landmarks_.size());
-    lm.position = pose.head<2>() + r * observation;
+    lm.position = transformPoint(pose, observation);
+    // d/dtheta of R(theta) z = R(theta + pi/2) z.
     Eigen::Matrix<double, 2, 3> g;
     g.leftCols<2>().setIdentity();
-    g.col(2) << -s * observation.x() - c * observation.y(),
-        c * observation.x() - s * observation.y();
+    g.col(2) = rotation(pose.z() + M_PI_2) * observation;
     lm.covariance = g * pose_cov * g.transpose() + r * obs_cov * r.transpose();
     lm.observations = 1;
     landmarks_.push_back(lm);

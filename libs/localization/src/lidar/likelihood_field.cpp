@@ -1,7 +1,5 @@
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
 
-#include <mrpt/maps/COccupancyGridMap2D.h>
-
 #include <algorithm>
 #include <cmath>
 
@@ -9,18 +7,17 @@ namespace uwbloc::loc {
 
 LikelihoodField::LikelihoodField(const OccupancyMap& map, const LikelihoodFieldParams& params)
     : params_(params) {
-  const auto& g = map.grid();
-  nx_ = static_cast<int>(g.getSizeX());
-  ny_ = static_cast<int>(g.getSizeY());
-  res_ = g.getResolution();
-  x0_ = g.getXMin();
-  y0_ = g.getYMin();
+  nx_ = map.sizeX();
+  ny_ = map.sizeY();
+  res_ = map.resolution();
+  x0_ = map.bounds().xmin;
+  y0_ = map.bounds().ymin;
   // Two-pass chamfer distance transform (8-neighbour, weights 1 and sqrt 2), in cells.
   const float inf = 1e9f;
   std::vector<float> d(static_cast<size_t>(nx_) * ny_, inf);
   for (int cy = 0; cy < ny_; ++cy)
     for (int cx = 0; cx < nx_; ++cx)
-      if (g.getCell(cx, cy) < 0.5f) d[static_cast<size_t>(cy) * nx_ + cx] = 0.0f;
+      if (map.freeProbability(cx, cy) < 0.5f) d[static_cast<size_t>(cy) * nx_ + cx] = 0.0f;
   const float diag = std::sqrt(2.0f);
   auto at = [&](int cx, int cy) -> float& { return d[static_cast<size_t>(cy) * nx_ + cx]; };
   for (int cy = 0; cy < ny_; ++cy)
@@ -65,18 +62,13 @@ double LikelihoodField::distance(double x, double y) const {
 void LikelihoodField::setScan(const LaserScan& scan) {
   ex_.clear();
   ey_.clear();
-  const int step = std::max(1, params_.decimation);
-  const double cs = std::cos(scan.sensor_pose.z()), ss = std::sin(scan.sensor_pose.z());
-  for (size_t i = 0; i < scan.ranges.size(); i += static_cast<size_t>(step)) {
-    const double r = scan.ranges[i];
-    if (!scan.valid[i] || r < params_.min_range || r >= params_.max_range ||
-        r >= scan.max_range - 1e-3)
-      continue;
-    const double a = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
-    const double sx = r * std::cos(a), sy = r * std::sin(a);
-    ex_.push_back(scan.sensor_pose.x() + cs * sx - ss * sy);
-    ey_.push_back(scan.sensor_pose.y() + ss * sx + cs * sy);
-  }
+  // Max-range readings are no returns.
+  const double max_range = std::min(params_.max_range, scan.max_range - 1e-3);
+  forEachScanEndpoint(scan, static_cast<size_t>(std::max(1, params_.decimation)),
+                      params_.min_range, max_range, [&](size_t, const Eigen::Vector2d& p) {
+                        ex_.push_back(p.x());
+                        ey_.push_back(p.y());
+                      });
 }
 
 double LikelihoodField::logLikelihood(double x, double y, double theta) const {

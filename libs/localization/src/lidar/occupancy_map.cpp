@@ -3,7 +3,6 @@
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/maps/COccupancyGridMap2D.h>
-#include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/serialization/CArchive.h>
 
 #include <cmath>
@@ -20,26 +19,6 @@ bool endsWith(const std::string& s, const std::string& suffix) {
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 }  // namespace
-
-LidarParams LidarParams::preset(const std::string& name) {
-  LidarParams p;
-  if (name == "rplidar_a2") {
-    p.rays = 400;
-    p.fov = 2 * M_PI;
-    p.min_range = 0.2;
-    p.max_range = 8.0;
-    p.sigma = 0.01;
-  } else if (name == "sick_lms") {
-    p.rays = 361;
-    p.fov = M_PI;
-    p.min_range = 0.05;
-    p.max_range = 30.0;
-    p.sigma = 0.01;
-  } else {
-    throw std::runtime_error("unknown LiDAR preset '" + name + "' (known: rplidar_a2, sick_lms)");
-  }
-  return p;
-}
 
 OccupancyMap::OccupancyMap() : grid_(std::make_unique<mrpt::maps::COccupancyGridMap2D>()) {}
 OccupancyMap::~OccupancyMap() = default;
@@ -72,55 +51,11 @@ OccupancyMap OccupancyMap::load(const std::string& path, double resolution,
   return map;
 }
 
-OccupancyMap OccupancyMap::fromRectangles(const Rect& bounds, const std::vector<Rect>& obstacles,
-                                          double resolution, bool walls) {
+OccupancyMap OccupancyMap::blank(const Rect& area, double resolution, float p_free) {
   OccupancyMap map;
-  const double margin = walls ? resolution : 0.0;
-  map.grid_->setSize(
-      static_cast<float>(bounds.xmin - margin), static_cast<float>(bounds.xmax + margin),
-      static_cast<float>(bounds.ymin - margin), static_cast<float>(bounds.ymax + margin),
-      static_cast<float>(resolution), 1.0f);
-  auto& g = *map.grid_;
-  const int nx = static_cast<int>(g.getSizeX()), ny = static_cast<int>(g.getSizeY());
-  for (int cy = 0; cy < ny; ++cy)
-    for (int cx = 0; cx < nx; ++cx) {
-      const double x = g.idx2x(cx), y = g.idx2y(cy);
-      bool occ =
-          walls && (x < bounds.xmin || x > bounds.xmax || y < bounds.ymin || y > bounds.ymax);
-      for (const auto& r : obstacles)
-        occ = occ || (x >= r.xmin && x <= r.xmax && y >= r.ymin && y <= r.ymax);
-      // Thin obstacles (a 2 cm plate) must still mark the cell they pass through.
-      if (!occ)
-        for (const auto& r : obstacles) {
-          const double h = resolution / 2;
-          occ = occ || (x + h > r.xmin && x - h < r.xmax && y + h > r.ymin && y - h < r.ymax);
-        }
-      g.setCell(cx, cy, occ ? 0.0f : 1.0f);
-    }
-  return map;
-}
-
-OccupancyMap OccupancyMap::fromScans(const std::vector<const LaserScan*>& scans,
-                                     const std::vector<Eigen::Vector3d>& poses, double resolution) {
-  OccupancyMap map;
-  map.grid_->setSize(-10, 10, -10, 10, static_cast<float>(resolution), 0.5f);  // grows as needed
-  for (size_t i = 0; i < scans.size() && i < poses.size(); ++i) {
-    const LaserScan& s = *scans[i];
-    mrpt::obs::CObservation2DRangeScan obs;
-    const size_t n = s.ranges.size();
-    obs.resizeScan(n);
-    obs.rightToLeft = s.angle_increment >= 0.0f;
-    obs.aperture = std::abs(s.angle_increment) * static_cast<float>(n > 1 ? n - 1 : 1);
-    obs.maxRange = s.max_range;
-    obs.sensorPose = mrpt::poses::CPose3D(s.sensor_pose.x(), s.sensor_pose.y(), s.sensor_height,
-                                          s.sensor_pose.z(), 0, 0);
-    for (size_t k = 0; k < n; ++k) {
-      obs.setScanRange(k, s.ranges[k]);
-      obs.setScanRangeValidity(k, s.valid[k] != 0);
-    }
-    const mrpt::poses::CPose3D pose(poses[i].x(), poses[i].y(), 0.0, poses[i].z(), 0, 0);
-    map.grid_->insertObservation(obs, pose);
-  }
+  map.grid_->setSize(static_cast<float>(area.xmin), static_cast<float>(area.xmax),
+                     static_cast<float>(area.ymin), static_cast<float>(area.ymax),
+                     static_cast<float>(resolution), p_free);
   return map;
 }
 
@@ -151,36 +86,6 @@ bool OccupancyMap::segmentBlocked(const Eigen::Vector2d& a, const Eigen::Vector2
   return false;
 }
 
-LaserScan OccupancyMap::castScan(const Eigen::Vector3d& robot_pose,
-                                 const LidarParams& lidar) const {
-  mrpt::obs::CObservation2DRangeScan obs;
-  obs.aperture = static_cast<float>(lidar.fov);
-  obs.maxRange = static_cast<float>(lidar.max_range);
-  obs.rightToLeft = true;
-  obs.sensorPose = mrpt::poses::CPose3D(lidar.sensor_pose.x(), lidar.sensor_pose.y(),
-                                        lidar.sensor_height, lidar.sensor_pose.z(), 0, 0);
-  grid_->laserScanSimulator(obs,
-                            mrpt::poses::CPose2D(robot_pose.x(), robot_pose.y(), robot_pose.z()),
-                            kOccupiedBelow, static_cast<size_t>(lidar.rays), 0.0f);
-  LaserScan scan;
-  scan.sensor_pose = lidar.sensor_pose;
-  scan.sensor_height = lidar.sensor_height;
-  scan.max_range = static_cast<float>(lidar.max_range);
-  const size_t n = obs.getScanSize();
-  // MRPT spaces the rays by aperture / (N - 1) from -aperture/2 (so a full circle repeats its
-  // first direction in the last ray).
-  scan.angle_increment = static_cast<float>(n > 1 ? lidar.fov / static_cast<double>(n - 1) : 0.0);
-  scan.angle_min = static_cast<float>(-lidar.fov / 2);
-  scan.ranges.resize(n);
-  scan.valid.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const float r = obs.getScanRange(i);
-    scan.ranges[i] = r;
-    scan.valid[i] = obs.getScanRangeValidity(i) && r >= lidar.min_range && r < lidar.max_range;
-  }
-  return scan;
-}
-
 std::vector<Eigen::Vector2d> OccupancyMap::freeCells() const {
   std::vector<Eigen::Vector2d> out;
   const auto& g = *grid_;
@@ -196,5 +101,15 @@ Rect OccupancyMap::bounds() const {
 }
 
 double OccupancyMap::resolution() const { return grid_->getResolution(); }
+
+int OccupancyMap::sizeX() const { return static_cast<int>(grid_->getSizeX()); }
+int OccupancyMap::sizeY() const { return static_cast<int>(grid_->getSizeY()); }
+float OccupancyMap::freeProbability(int cx, int cy) const { return grid_->getCell(cx, cy); }
+void OccupancyMap::setFreeProbability(int cx, int cy, float p_free) {
+  grid_->setCell(cx, cy, p_free);
+}
+Eigen::Vector2d OccupancyMap::cellCentre(int cx, int cy) const {
+  return {grid_->idx2x(cx), grid_->idx2y(cy)};
+}
 
 }  // namespace uwbloc::loc

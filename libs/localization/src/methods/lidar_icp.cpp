@@ -19,16 +19,12 @@ namespace {
 std::unique_ptr<mrpt::maps::CSimplePointsMap> toPoints(const LaserScan& scan,
                                                        const LidarIcpParams& p) {
   auto map = std::make_unique<mrpt::maps::CSimplePointsMap>();
-  const double cs = std::cos(scan.sensor_pose.z()), ss = std::sin(scan.sensor_pose.z());
-  const auto step = static_cast<size_t>(std::max(1, p.decimation));
-  for (size_t i = 0; i < scan.ranges.size(); i += step) {
-    const double r = scan.ranges[i];
-    if (!scan.valid[i] || r < p.min_range || r > p.max_range) continue;
-    const double a = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
-    const double sx = r * std::cos(a), sy = r * std::sin(a);
-    map->insertPoint(static_cast<float>(scan.sensor_pose.x() + cs * sx - ss * sy),
-                     static_cast<float>(scan.sensor_pose.y() + ss * sx + cs * sy), 0.0f);
-  }
+  forEachScanEndpoint(scan, static_cast<size_t>(std::max(1, p.decimation)), p.min_range,
+                      std::nextafter(p.max_range, HUGE_VAL),  // max_range itself is a return
+                      [&](size_t, const Eigen::Vector2d& q) {
+                        map->insertPoint(static_cast<float>(q.x()), static_cast<float>(q.y()),
+                                         0.0f);
+                      });
   return map;
 }
 

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/localization/lidar/occupancy_map.hpp"
 #include "uwbloc/uwb/types.hpp"
 
@@ -63,7 +64,7 @@ struct ImuSimSpec {
 struct LidarSimSpec {
   bool enabled = false;
   double rate = 10.0;  ///< [Hz]
-  loc::LidarParams params;
+  LidarParams params;
 };
 
 /// A second, slow tag (the mobile-node paper): it ranges to the anchors and the robot's tag

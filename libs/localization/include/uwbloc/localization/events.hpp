@@ -3,9 +3,11 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <variant>
 #include <vector>
 
+#include "uwbloc/uwb/pose2.hpp"
 #include "uwbloc/uwb/types.hpp"
 
 namespace uwbloc::loc {
@@ -42,13 +44,25 @@ inline double eventTime(const Event& e) {
   return std::visit([](const auto& v) { return v.t; }, e);
 }
 
-/// Composes a pose with an increment expressed in its own frame (SE(2) oplus).
-Eigen::Vector3d composePose(const Eigen::Vector3d& pose, const Eigen::Vector3d& delta);
+using uwbloc::composePose;
+using uwbloc::relativePose;
+using uwbloc::wrapAngle;
 
-/// The increment that takes `from` to `to`, in the frame of `from` (SE(2) inverse compose).
-Eigen::Vector3d relativePose(const Eigen::Vector3d& from, const Eigen::Vector3d& to);
+/// Stable time order of an event stream: the one ordering every reader, importer and the
+/// simulator use (events with equal stamps keep the order they were produced in).
+void sortByTime(std::vector<Event>& events);
 
-/// Wraps an angle to (-pi, pi].
-double wrapAngle(double a);
+/// Calls fn(i, endpoint) for every `step`-th ray i of `scan` that returned with a range in
+/// [min_range, max_range), the endpoint in the robot frame (through the sensor's pose on it).
+template <class Fn>
+void forEachScanEndpoint(const LaserScan& scan, size_t step, double min_range, double max_range,
+                         Fn&& fn) {
+  for (size_t i = 0; i < scan.ranges.size(); i += step) {
+    const double r = scan.ranges[i];
+    if (!scan.valid[i] || r < min_range || r >= max_range) continue;
+    const double a = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
+    fn(i, transformPoint(scan.sensor_pose, Eigen::Vector2d(r * std::cos(a), r * std::sin(a))));
+  }
+}
 
 }  // namespace uwbloc::loc

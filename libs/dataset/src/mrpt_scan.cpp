@@ -1,0 +1,44 @@
+#include "mrpt_scan.hpp"
+
+#include <cmath>
+
+namespace uwbloc::data {
+
+loc::LaserScan fromMrpt(const mrpt::obs::CObservation2DRangeScan& obs, double t) {
+  loc::LaserScan scan;
+  scan.t = t;
+  scan.sensor_pose << obs.sensorPose.x(), obs.sensorPose.y(), obs.sensorPose.yaw();
+  scan.sensor_height = obs.sensorPose.z();
+  const size_t n = obs.getScanSize();
+  // MRPT spaces the rays by aperture / (N - 1) from -aperture/2 (right to left) or +aperture/2,
+  // so a full circle repeats its first direction in the last ray.
+  scan.angle_min = static_cast<float>(obs.rightToLeft ? -obs.aperture / 2 : obs.aperture / 2);
+  scan.angle_increment =
+      n > 1 ? static_cast<float>((obs.rightToLeft ? 1 : -1) * obs.aperture / (n - 1)) : 0.0f;
+  scan.max_range = obs.maxRange;
+  scan.ranges.resize(n);
+  scan.valid.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    scan.ranges[i] = obs.getScanRange(i);
+    scan.valid[i] = obs.getScanRangeValidity(i) ? 1 : 0;
+  }
+  return scan;
+}
+
+mrpt::obs::CObservation2DRangeScan toMrpt(const loc::LaserScan& s) {
+  mrpt::obs::CObservation2DRangeScan obs;
+  obs.sensorPose = mrpt::poses::CPose3D(s.sensor_pose.x(), s.sensor_pose.y(), s.sensor_height,
+                                        s.sensor_pose.z(), 0, 0);
+  const size_t n = s.ranges.size();
+  obs.resizeScan(n);
+  obs.rightToLeft = s.angle_increment >= 0.0f;
+  obs.aperture = std::abs(s.angle_increment) * static_cast<float>(n > 1 ? n - 1 : 1);
+  obs.maxRange = s.max_range;
+  for (size_t i = 0; i < n; ++i) {
+    obs.setScanRange(i, s.ranges[i]);
+    obs.setScanRangeValidity(i, s.valid[i] != 0);
+  }
+  return obs;
+}
+
+}  // namespace uwbloc::data
