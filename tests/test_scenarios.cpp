@@ -67,7 +67,7 @@ TEST(Carmen, ImportAndAugmentIntel) {
   ASSERT_TRUE(std::filesystem::exists(log)) << log << " (CI expects ../shared/datasets)";
   const auto dir = test::scratchDir();
   const auto imported = data::importCarmen(log.string(), (dir / "intel").string());
-  EXPECT_EQ(imported.ranges, 910);  // scans
+  EXPECT_EQ(imported.scans, 910);  // scans
   EXPECT_EQ(imported.ground_truth_rows, 910);
   // Anchors inside the building, on the reference path.
   test::writeText(dir / "anchors.csv",

@@ -103,19 +103,22 @@ ImportSummary importCarmen(const std::string& log_path, const std::string& out_d
     if (name.size() > std::string(ext).size() &&
         name.substr(name.size() - std::string(ext).size()) == ext)
       name = name.substr(0, name.size() - std::string(ext).size());
-  std::ostringstream ini;
-  ini << "# Imported by 'uwbloc import carmen' from " << fs::absolute(log_path).string() << "\n"
-      << "# The reference is the log's SLAM-corrected laser pose, not independent ground truth.\n"
-      << "# No anchors: add some with 'uwbloc augment'. This manifest lists a placeholder anchor.\n"
-      << "[dataset]\nname = carmen_" << name
-      << "\nrawlog = carmen.rawlog\nground_truth = reference.txt\n"
-      << "ground_truth_format = time_xyphi\n\n[anchors]\nbeacon_001_ID = 1\nbeacon_001_X = 0\n"
-      << "beacon_001_Y = 0\nbeacon_001_Z = 2\n";
-  const std::string manifest = (out / "dataset.ini").string();
-  writeFileAtomic(manifest, ini.str());
-  long scans = 0;
-  for (const auto& e : events) scans += std::holds_alternative<loc::LaserScan>(e);
-  return {manifest, scans, 0, static_cast<long>(reference.size())};
+  ManifestDraft m;
+  m.comments = {"Imported by 'uwbloc import carmen' from " + fs::absolute(log_path).string(),
+                "The reference is the log's SLAM-corrected laser pose, not independent ground "
+                "truth.",
+                "No anchors: add some with 'uwbloc augment'. This manifest lists a placeholder "
+                "anchor."};
+  m.name = "carmen_" + name;
+  m.rawlog = "carmen.rawlog";
+  m.ground_truth = "reference.txt";
+  m.ground_truth_format = GroundTruthFormat::kTimeXyPhi;
+  m.anchors = {{1, {0.0, 0.0, 2.0}}};
+  ImportSummary summary;
+  summary.manifest = writeManifest(out_dir, m);
+  for (const auto& e : events) summary.scans += std::holds_alternative<loc::LaserScan>(e);
+  summary.ground_truth_rows = static_cast<long>(reference.size());
+  return summary;
 }
 
 }  // namespace uwbloc::data

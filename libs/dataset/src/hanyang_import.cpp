@@ -143,22 +143,21 @@ ImportSummary importHanyang(const std::string& run_dir, const std::string& out_d
   }
   writeFileAtomic((out / "range_features.csv").string(), feat);
 
-  std::ostringstream ini;
-  ini << "# Imported by 'uwbloc import hanyang' from " << fs::absolute(run_dir).string() << "\n"
-      << "[dataset]\n"
-      << "name = hanyang_" << fs::path(run_dir).lexically_normal().filename().string() << "\n"
-      << "rawlog = uwb.rawlog\n"
-      << "ground_truth = ground_truth.tum\n"
-      << "ground_truth_format = tum\n"
-      << "range_features = range_features.csv\n\n"
-      << "[anchors]\n"
-      << "anchors_csv = anchors.csv\n\n"
-      << "[tag]\n"
-      << "height = " << params.tag_height << "\n";
-  const std::string manifest = (out / "dataset.ini").string();
-  writeFileAtomic(manifest, ini.str());
-  return {manifest, static_cast<long>(events.size()), static_cast<long>(anchors.size()),
-          static_cast<long>(gt.size())};
+  ManifestDraft m;
+  m.comments = {"Imported by 'uwbloc import hanyang' from " + fs::absolute(run_dir).string()};
+  m.name = "hanyang_" + fs::path(run_dir).lexically_normal().filename().string();
+  m.rawlog = "uwb.rawlog";
+  m.ground_truth = "ground_truth.tum";
+  m.ground_truth_format = GroundTruthFormat::kTum;
+  m.range_features = "range_features.csv";
+  m.anchors_csv = "anchors.csv";
+  m.tag_height = params.tag_height;
+  ImportSummary summary;
+  summary.manifest = writeManifest(out_dir, m);
+  summary.ranges = static_cast<long>(events.size());
+  summary.anchors = static_cast<long>(anchors.size());
+  summary.ground_truth_rows = static_cast<long>(gt.size());
+  return summary;
 }
 
 }  // namespace uwbloc::data

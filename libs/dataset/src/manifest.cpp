@@ -40,6 +40,57 @@ const char* toString(GroundTruthFormat f) {
   return "none";
 }
 
+namespace {
+std::string number(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+}  // namespace
+
+std::string formatManifest(const ManifestDraft& d) {
+  std::ostringstream ini;
+  for (const auto& c : d.comments) ini << "# " << c << "\n";
+  ini << "[dataset]\nname = " << d.name << "\nrawlog = " << d.rawlog << "\n";
+  if (!d.ground_truth.empty())
+    ini << "ground_truth = " << d.ground_truth
+        << "\nground_truth_format = " << toString(d.ground_truth_format) << "\n";
+  if (d.gt_max_gap) ini << "gt_max_gap = " << number("%.3g", *d.gt_max_gap) << "\n";
+  if (!d.map.empty()) ini << "map = " << d.map << "\n";
+  if (!d.range_features.empty()) ini << "range_features = " << d.range_features << "\n";
+  ini << "\n[anchors]\n";
+  if (!d.anchors_csv.empty()) ini << "anchors_csv = " << d.anchors_csv << "\n";
+  for (size_t i = 0; d.anchors_csv.empty() && i < d.anchors.size(); ++i) {
+    const auto& a = d.anchors[i];
+    const std::string key = "beacon_" + number("%03.0f", static_cast<double>(i + 1)) + "_";
+    ini << key << "ID = " << a.id << "\n"
+        << key << "X = " << number("%.6g", a.position.x()) << "\n"
+        << key << "Y = " << number("%.6g", a.position.y()) << "\n"
+        << key << "Z = " << number("%.6g", a.position.z()) << "\n";
+  }
+  if (d.tag_height || d.lever_arm) ini << "\n[tag]\n";
+  if (d.tag_height) ini << "height = " << number("%.4f", *d.tag_height) << "\n";
+  if (d.lever_arm)
+    ini << "lever_arm_x = " << number("%.4f", d.lever_arm->x())
+        << "\nlever_arm_y = " << number("%.4f", d.lever_arm->y()) << "\n";
+  if (d.bounds_range_sigma || d.bounds_odometry) ini << "\n[bounds]\n";
+  if (d.bounds_range_sigma)
+    ini << "# The LOS range noise, for the Cramer-Rao bounds.\nrange_sigma = "
+        << number("%.6g", *d.bounds_range_sigma) << "\n";
+  if (d.bounds_odometry)
+    ini << "# For 'motion = odometry': the odometry noise.\nodom_sigma_xy_per_m = "
+        << number("%.6g", d.bounds_odometry->x())
+        << "\nodom_sigma_theta_per_rad = " << number("%.6g", d.bounds_odometry->y())
+        << "\nodom_sigma_theta_per_m = " << number("%.6g", d.bounds_odometry->z()) << "\n";
+  return ini.str();
+}
+
+std::string writeManifest(const std::string& dir, const ManifestDraft& draft) {
+  const std::string path = (fs::path(dir) / "dataset.ini").string();
+  writeFileAtomic(path, formatManifest(draft));
+  return path;
+}
+
 std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
   std::vector<uwb::Anchor> anchors;
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {

@@ -66,14 +66,20 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
   writeRawlog((out / "plaza.rawlog").string(), events);
   writeFileAtomic((out / "ground_truth.tum").string(), formatTum(gt));
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
-  std::ostringstream ini;
-  ini << "# Imported by 'uwbloc import plaza' from " << fs::absolute(dir).string() << "\n"
-      << "[dataset]\nname = plaza_" << prefix
-      << "\nrawlog = plaza.rawlog\nground_truth = ground_truth.tum\n"
-      << "ground_truth_format = tum\n\n[anchors]\nanchors_csv = anchors.csv\n\n[tag]\nheight = 0\n";
-  const std::string manifest = (out / "dataset.ini").string();
-  writeFileAtomic(manifest, ini.str());
-  return {manifest, ranges, static_cast<long>(anchors.size()), static_cast<long>(gt.size())};
+  ManifestDraft m;
+  m.comments = {"Imported by 'uwbloc import plaza' from " + fs::absolute(dir).string()};
+  m.name = "plaza_" + prefix;
+  m.rawlog = "plaza.rawlog";
+  m.ground_truth = "ground_truth.tum";
+  m.ground_truth_format = GroundTruthFormat::kTum;
+  m.anchors_csv = "anchors.csv";
+  m.tag_height = 0.0;
+  ImportSummary summary;
+  summary.manifest = writeManifest(out_dir, m);
+  summary.ranges = ranges;
+  summary.anchors = static_cast<long>(anchors.size());
+  summary.ground_truth_rows = static_cast<long>(gt.size());
+  return summary;
 }
 
 }  // namespace uwbloc::data

@@ -88,10 +88,16 @@ class RangeModel {
 };
 
 
-std::string fmt(const char* f, double a) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, a);
-  return buf;
+// One row per simulated range: its truth, error and NLOS flag.
+std::string formatRangeTruth(const std::vector<RangeTruth>& truth) {
+  std::string out = "t,tag_id,anchor_id,true_range,error,nlos\n";
+  char buf[160];
+  for (const auto& r : truth) {
+    std::snprintf(buf, sizeof buf, "%.6f,%d,%d,%.6f,%.6f,%d\n", r.t, r.tag_id, r.anchor_id,
+                  r.true_range, r.error, r.nlos ? 1 : 0);
+    out += buf;
+  }
+  return out;
 }
 
 }  // namespace
@@ -306,31 +312,25 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
   writeRawlog((out / "augmented.rawlog").string(), events);
   writeFileAtomic((out / "reference.txt").string(), formatTimeXyPhi(reference));
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
-  char buf[256];
-  std::string t = "t,tag_id,anchor_id,true_range,error,nlos\n";
   long nlos = 0;
-  for (const auto& r : truth) {
-    std::snprintf(buf, sizeof buf, "%.6f,%d,%d,%.6f,%.6f,%d\n", r.t, r.tag_id, r.anchor_id,
-                  r.true_range, r.error, r.nlos ? 1 : 0);
-    t += buf;
-    nlos += r.nlos;
-  }
-  writeFileAtomic((out / "range_truth.csv").string(), t);
+  for (const auto& r : truth) nlos += r.nlos;
+  writeFileAtomic((out / "range_truth.csv").string(), formatRangeTruth(truth));
   if (map) map->save((out / "map.gridmap.gz").string());
-  std::ostringstream ini;
-  ini << "# Written by 'uwbloc augment': " << truth.size() << " simulated ranges (" << nlos
-      << " NLOS), seed " << req.seed << "\n[dataset]\nname = augmented_"
-      << fs::path(req.rawlog).stem().string()
-      << "\nrawlog = augmented.rawlog\nground_truth = reference.txt\nground_truth_format = "
-         "time_xyphi\n";
-  ini << "gt_max_gap = " << fmt("%.3g", req.max_gap) << "\n";
-  if (map) ini << "map = map.gridmap.gz\n";
-  ini << "\n[anchors]\nanchors_csv = anchors.csv\n\n[tag]\nheight = " << fmt("%.4f", uwb.tag.z())
-      << "\nlever_arm_x = " << fmt("%.4f", uwb.tag.x())
-      << "\nlever_arm_y = " << fmt("%.4f", uwb.tag.y())
-      << "\n\n[bounds]\nrange_sigma = " << fmt("%.6g", uwb.sigma) << "\n";
-  const std::string manifest = (out / "dataset.ini").string();
-  writeFileAtomic(manifest, ini.str());
+  ManifestDraft m;
+  m.comments = {"Written by 'uwbloc augment': " + std::to_string(truth.size()) +
+                " simulated ranges (" + std::to_string(nlos) + " NLOS), seed " +
+                std::to_string(req.seed)};
+  m.name = "augmented_" + fs::path(req.rawlog).stem().string();
+  m.rawlog = "augmented.rawlog";
+  m.ground_truth = "reference.txt";
+  m.ground_truth_format = GroundTruthFormat::kTimeXyPhi;
+  m.gt_max_gap = req.max_gap;
+  if (map) m.map = "map.gridmap.gz";
+  m.anchors_csv = "anchors.csv";
+  m.tag_height = uwb.tag.z();
+  m.lever_arm = uwb.tag.head<2>();
+  m.bounds_range_sigma = uwb.sigma;
+  const std::string manifest = writeManifest(out_dir, m);
   return manifest;
 }
 
@@ -345,15 +345,8 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
     writeFileAtomic((out / "tag2_ground_truth.tum").string(), formatTum(sim.tag2_ground_truth));
 
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(s.anchors));
+  writeFileAtomic((out / "range_truth.csv").string(), formatRangeTruth(sim.range_truth));
   char buf[256];
-
-  std::string truth = "t,tag_id,anchor_id,true_range,error,nlos\n";
-  for (const auto& r : sim.range_truth) {
-    std::snprintf(buf, sizeof buf, "%.6f,%d,%d,%.6f,%.6f,%d\n", r.t, r.tag_id, r.anchor_id,
-                  r.true_range, r.error, r.nlos ? 1 : 0);
-    truth += buf;
-  }
-  writeFileAtomic((out / "range_truth.csv").string(), truth);
 
   if (s.uwb.features) {
     std::string feat = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
@@ -370,26 +363,23 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
   const auto map = scenarioMap(s);
   if (map) map->save((out / "map.gridmap.gz").string());
 
-  std::ostringstream ini;
-  ini << "# Written by 'uwbloc simulate' from " << fs::path(s.path).filename().string() << ", seed "
-      << seed << "\n"
-      << "[dataset]\nname = sim_" << s.name
-      << "\nrawlog = sim.rawlog\nground_truth = ground_truth.tum\n"
-      << "ground_truth_format = tum\n";
-  if (map) ini << "map = map.gridmap.gz\n";
-  if (s.uwb.features) ini << "range_features = range_features.csv\n";
-  ini << "\n[anchors]\nanchors_csv = anchors.csv\n\n[tag]\nheight = " << fmt("%.4f", s.uwb.tag.z())
-      << "\nlever_arm_x = " << fmt("%.4f", s.uwb.tag.x())
-      << "\nlever_arm_y = " << fmt("%.4f", s.uwb.tag.y()) << "\n"
-      << "\n[bounds]\n# The simulated LOS range noise, for the Cramer-Rao bounds.\nrange_sigma = "
-      << fmt("%.6g", s.uwb.sigma) << "\n";
+  ManifestDraft m;
+  m.comments = {"Written by 'uwbloc simulate' from " + fs::path(s.path).filename().string() +
+                ", seed " + std::to_string(seed)};
+  m.name = "sim_" + s.name;
+  m.rawlog = "sim.rawlog";
+  m.ground_truth = "ground_truth.tum";
+  m.ground_truth_format = GroundTruthFormat::kTum;
+  if (map) m.map = "map.gridmap.gz";
+  if (s.uwb.features) m.range_features = "range_features.csv";
+  m.anchors_csv = "anchors.csv";
+  m.tag_height = s.uwb.tag.z();
+  m.lever_arm = s.uwb.tag.head<2>();
+  m.bounds_range_sigma = s.uwb.sigma;
   if (s.odometry.rate > 0)
-    ini << "# For 'motion = odometry': the simulated odometry noise.\nodom_sigma_xy_per_m = "
-        << fmt("%.6g", s.odometry.sigma_xy_per_m)
-        << "\nodom_sigma_theta_per_rad = " << fmt("%.6g", s.odometry.sigma_theta_per_rad)
-        << "\nodom_sigma_theta_per_m = " << fmt("%.6g", s.odometry.sigma_theta_per_m) << "\n";
-  const std::string manifest = (out / "dataset.ini").string();
-  writeFileAtomic(manifest, ini.str());
+    m.bounds_odometry = Eigen::Vector3d(s.odometry.sigma_xy_per_m, s.odometry.sigma_theta_per_rad,
+                                        s.odometry.sigma_theta_per_m);
+  const std::string manifest = writeManifest(out_dir, m);
   return manifest;
 }
 

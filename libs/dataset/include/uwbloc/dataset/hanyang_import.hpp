@@ -15,18 +15,14 @@
 #include <string>
 #include <vector>
 
+#include "uwbloc/dataset/manifest.hpp"
+
 namespace uwbloc::data {
 
 struct HanyangImportParams {
   double tag_height = 1.0;  ///< tag height above the anchors' z datum [m]
 };
 
-struct ImportSummary {
-  std::string manifest;  ///< path of the written manifest
-  long ranges = 0;
-  long anchors = 0;
-  long ground_truth_rows = 0;
-};
 
 /// One two-way-ranging exchange of a Hanyang static file (static/{LOS,NLOS}/height_*/Nm.csv):
 /// raw DW1000 timestamps (stored as wrapped signed 32-bit numbers) and the device's distance.

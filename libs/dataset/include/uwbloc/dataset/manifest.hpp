@@ -81,6 +81,42 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path);
 /// The same CSV, with its header.
 std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors);
 
+/// What a written manifest says: the files beside it (paths relative to its folder) and the
+/// facts of the recording. The one writer of manifests: the simulator and every importer.
+struct ManifestDraft {
+  std::vector<std::string> comments;  ///< "# " lines at the top (provenance, caveats)
+  std::string name;
+  std::string rawlog;
+  std::string ground_truth;
+  GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
+  std::optional<double> gt_max_gap;
+  std::string map;
+  std::string range_features;
+  std::string anchors_csv;          ///< the anchors file; when empty, `anchors` are written inline
+  std::vector<uwb::Anchor> anchors;
+  std::optional<double> tag_height;
+  std::optional<Eigen::Vector2d> lever_arm;
+  /// [bounds]: the recording's LOS range noise, and (motion = odometry) its odometry noise
+  /// (xy per metre, theta per radian, theta per metre).
+  std::optional<double> bounds_range_sigma;
+  std::optional<Eigen::Vector3d> bounds_odometry;
+};
+
+/// The manifest text of `draft`.
+std::string formatManifest(const ManifestDraft& draft);
+
+/// Writes `draft` as `dir`/dataset.ini (atomically); returns its path.
+std::string writeManifest(const std::string& dir, const ManifestDraft& draft);
+
+/// What an importer wrote, for its one-line summary.
+struct ImportSummary {
+  std::string manifest;  ///< path of the written manifest
+  long ranges = 0;
+  long anchors = 0;
+  long scans = 0;
+  long ground_truth_rows = 0;
+};
+
 GroundTruthFormat parseGroundTruthFormat(const std::string& text);
 const char* toString(GroundTruthFormat f);
 

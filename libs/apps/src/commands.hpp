@@ -1,0 +1,95 @@
+// The subcommand classes (internal to the apps library; the executable sees Command only).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "uwbloc/apps/command.hpp"
+#include "uwbloc/dataset/hanyang_import.hpp"
+#include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/localization/optim/optimizers.hpp"
+
+namespace uwbloc::apps {
+
+/// Options of every command that runs methods on a dataset.
+struct RunOptions {
+  std::string dataset = "mrpt_uwb_demo.ini";
+  std::string data_dir;
+  std::string out;
+  std::string config;
+  std::vector<std::string> sets;
+  uint64_t seed = 1;
+  int repeat = 1;
+};
+
+/// `run` (one method) and `compare` (several): replay, score, write the run directory, print
+/// the table.
+class RunMethodsCommand : public Command {
+ public:
+  explicit RunMethodsCommand(bool compare) : compare_(compare) {}
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  bool compare_;
+  RunOptions options_;
+  std::string methods_;
+};
+
+/// `import FORMAT SOURCE --out DIR`: a public dataset into a rawlog, a reference and a manifest.
+class ImportCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::string format_, source_, out_, data_dir_;
+  data::HanyangImportParams hanyang_;
+};
+
+/// `simulate --scenario S --out DIR`.
+class SimulateCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::string scenario_, out_;
+  uint64_t seed_ = 1;
+};
+
+/// `augment`: simulated UWB ranges added to a real LiDAR recording.
+class AugmentCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  data::AugmentRequest request_;
+  std::string out_;
+};
+
+/// `bench-optimizers`: the PF-IBAS paper's Table 2.
+class BenchOptimizersCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  int runs_ = 30;
+  optim::RunSettings settings_;
+  uint64_t seed_ = 1;
+  int dim_ = 30;
+  std::string optimizers_ = "bas,pso,ga,ba,ibas,ibas-fixed,ibas-scaled";
+  std::string functions_ = "f1_sphere,f2_schwefel_2.22,f3_step,f4_rastrigin,f5_griewank";
+};
+
+/// `methods`: every registered method with its parameters, defaults and meaning.
+class MethodsCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+};
+
+}  // namespace uwbloc::apps

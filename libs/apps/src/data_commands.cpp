@@ -1,0 +1,97 @@
+// `uwbloc import`, `simulate` and `augment`: the commands that write datasets.
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "commands.hpp"
+#include "uwbloc/dataset/carmen_import.hpp"
+#include "uwbloc/dataset/data_dir.hpp"
+#include "uwbloc/dataset/plaza_import.hpp"
+#include "uwbloc/dataset/scenario.hpp"
+
+namespace uwbloc::apps {
+
+void ImportCommand::declare(CLI::App& parser) {
+  subcommand_ = parser.add_subcommand(
+      "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
+  auto* cmd = subcommand_;
+  cmd->add_option("format", format_,
+                  "source format: hanyang (one dynamic run folder), carmen (a .log or .log.gz) or "
+                  "plaza (the Plaza folder)")
+      ->required()
+      ->check(CLI::IsMember({"hanyang", "carmen", "plaza"}));
+  cmd->add_option("source", source_,
+                  "source folder (as given, or relative to the data directory), e.g. "
+                  "hanyang_outdoor_uwb/LOS_TrajA_Case1")
+      ->required();
+  cmd->add_option("--out,-o", out_, "output folder")->required();
+  cmd->add_option("--data-dir", data_dir_, "folder of public datasets");
+  cmd->add_option("--tag-height", hanyang_.tag_height, "hanyang: tag height [m]")
+      ->capture_default_str();
+}
+
+int ImportCommand::run() {
+  const std::string src = data::resolveInputPath(source_, data::resolveDataDir(data_dir_));
+  data::ImportSummary s;
+  if (format_ == "hanyang")
+    s = data::importHanyang(src, out_, hanyang_);
+  else if (format_ == "plaza")
+    s = data::importPlaza(src, out_);
+  else
+    s = data::importCarmen(src, out_);
+  std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors, " << s.scans
+            << " scans and " << s.ground_truth_rows << " reference poses\nManifest: "
+            << s.manifest << "\n";
+  return kSuccess;
+}
+
+void SimulateCommand::declare(CLI::App& parser) {
+  subcommand_ = parser.add_subcommand(
+      "simulate",
+      "Simulate a scenario: writes a rawlog, ground truth (TUM and time x y phi), anchors, map "
+      "and a manifest");
+  subcommand_
+      ->add_option("--scenario,-s", scenario_,
+                   "scenario INI (as given, or in the project's datasets/scenarios/)")
+      ->required();
+  subcommand_->add_option("--out,-o", out_, "output folder")->required();
+  subcommand_
+      ->add_option("--seed", seed_, "random seed; the same seed gives byte-identical files")
+      ->capture_default_str();
+}
+
+int SimulateCommand::run() {
+  const std::string path = data::resolveInputPath(scenario_, "");
+  const auto sc = data::loadScenario(path);
+  for (const auto& w : sc.warnings) std::cerr << "warning: " << path << ": " << w << "\n";
+  const auto manifest = data::writeSimulation(sc, seed_, out_);
+  std::cout << "Simulated " << sc.name << " (" << sc.duration << " s, seed " << seed_
+            << ")\nManifest: " << manifest << "\n";
+  return kSuccess;
+}
+
+void AugmentCommand::declare(CLI::App& parser) {
+  subcommand_ = parser.add_subcommand(
+      "augment", "Add simulated UWB ranges to a real LiDAR recording at its reference poses");
+  auto* cmd = subcommand_;
+  data::AugmentRequest& r = request_;
+  cmd->add_option("--rawlog,-r", r.rawlog, "recording (rawlog)")->required();
+  cmd->add_option("--reference,-p", r.reference, "reference poses: .tum, else 'time x y phi'")
+      ->required();
+  cmd->add_option("--anchors,-a", r.anchors_csv, "anchors CSV (id,x,y,z)")->required();
+  cmd->add_option("--out,-o", out_, "output folder")->required();
+  cmd->add_option("--scenario,-s", r.scenario, "take the [uwb] noise model from this scenario");
+  cmd->add_option("--map", r.map,
+                  "map for NLOS: a map file, or 'scans' to map the recording's own scans at the "
+                  "reference poses (default: no NLOS)");
+  cmd->add_option("--seed", r.seed, "random seed")->capture_default_str();
+  cmd->add_option("--max-gap", r.max_gap,
+                  "no ranges where reference poses are further apart than this [s]")
+      ->capture_default_str();
+}
+
+int AugmentCommand::run() {
+  std::cout << "Manifest: " << data::writeAugmented(request_, out_) << "\n";
+  return kSuccess;
+}
+
+}  // namespace uwbloc::apps

@@ -1,0 +1,140 @@
+// `uwbloc run` and `uwbloc compare`.
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "commands.hpp"
+#include "uwbloc/dataset/data_dir.hpp"
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/ini_file.hpp"
+#include "uwbloc/evaluation/report.hpp"
+#include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/localization/registry.hpp"
+
+namespace uwbloc::apps {
+
+namespace {
+
+// "a:k=v,k=v,b" -> {"a:k=v,k=v", "b"}: an item with '=' but no ':' continues the previous spec.
+std::vector<std::string> splitMethods(const std::string& list) {
+  std::vector<std::string> out;
+  std::string item;
+  std::istringstream in(list);
+  while (std::getline(in, item, ',')) {
+    if (item.empty()) continue;
+    if (item.find('=') != std::string::npos && item.find(':') == std::string::npos && !out.empty())
+      out.back() += "," + item;
+    else
+      out.push_back(item);
+  }
+  if (out.size() == 1 && out[0] == "all") return loc::Registry::builtin().names();
+  return out;
+}
+
+// Parameters for one method from --config (its [method] section) and --set method.key=value.
+loc::ParamSet extraParams(const std::string& method_name, const RunOptions& opt) {
+  loc::ParamSet extra;
+  if (!opt.config.empty()) {
+    const auto ini = data::IniFile::load(opt.config);
+    for (const auto& key : ini.keys(method_name)) extra.set(key, *ini.get(method_name, key));
+  }
+  for (const auto& s : opt.sets) {
+    const auto eq = s.find('=');
+    const auto dot = s.rfind('.', eq);
+    if (eq == std::string::npos || dot == std::string::npos)
+      throw loc::ParamError("--set expects method.key=value, got '" + s + "'");
+    if (s.substr(0, dot) == method_name)
+      extra.set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
+  }
+  return extra;
+}
+
+void printProgress(double fraction, const std::string& label) {
+  const bool tty = isatty(fileno(stderr));
+  std::fprintf(stderr, "%s[%s] %3.0f%%%s", tty ? "\r" : "", label.c_str(), 100.0 * fraction,
+               tty ? (fraction >= 1.0 ? "\n" : "") : "\n");
+  std::fflush(stderr);
+}
+
+// Checks every method spec before spending time on any run. With 'all', methods whose needs
+// (ranges, scans, odometry, map) the dataset lacks are skipped; named ones are errors.
+std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptions& opt,
+                                         const std::vector<std::string>& methods, bool all) {
+  std::vector<std::string> runnable;
+  for (const auto& m : methods) {
+    const std::string missing = eval::missingNeeds(ds, m);
+    if (!missing.empty()) {
+      if (!all)
+        throw loc::ParamError("method '" + m + "' needs what dataset '" + ds.name +
+                              "' lacks: " + missing);
+      std::fprintf(stderr, "Skipping %s: the dataset has no %s\n", m.c_str(), missing.c_str());
+      continue;
+    }
+    loc::Registry::builtin().create(m, eval::makeContext(ds, opt.seed),
+                                    extraParams(loc::MethodSpec::parse(m).name, opt));
+    runnable.push_back(m);
+  }
+  return runnable;
+}
+
+}  // namespace
+
+void RunMethodsCommand::declare(CLI::App& parser) {
+  subcommand_ = compare_ ? parser.add_subcommand(
+                               "compare",
+                               "Run several methods on one dataset and print the comparison table")
+                         : parser.add_subcommand("run", "Run one method on a dataset and score it");
+  auto* cmd = subcommand_;
+  RunOptions& opt = options_;
+  cmd->add_option("--dataset,-d", opt.dataset,
+                  "dataset manifest (INI); looked up as given, then in the data directory, then "
+                  "in the project's datasets/")
+      ->capture_default_str();
+  cmd->add_option("--data-dir", opt.data_dir,
+                  "folder of public datasets (default: $UWBLOC_DATA_DIR, else ../shared/datasets)");
+  cmd->add_option("--out,-o", opt.out, "run directory to write (default: runs/<dataset>)");
+  cmd->add_option("--seed", opt.seed, "random seed of the first run")->capture_default_str();
+  cmd->add_option("--config", opt.config,
+                  "INI file with one [method-name] section of parameters per method");
+  cmd->add_option("--set", opt.sets, "override one parameter: method.key=value (repeatable)");
+  if (compare_) {
+    methods_ = "all";
+    cmd->add_option("--methods,-m", methods_,
+                    "comma-separated method specs, or 'all' for every registered method")
+        ->capture_default_str();
+    cmd->add_option("--repeat", opt.repeat, "runs per method (seeds seed, seed+1, ...)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
+  } else {
+    methods_ = "uwb-ekf";
+    cmd->add_option("--method,-m", methods_,
+                    "method spec, e.g. uwb-kf:q=0.1 (see 'uwbloc methods')")
+        ->capture_default_str();
+  }
+}
+
+int RunMethodsCommand::run() {
+  const RunOptions& opt = options_;
+  const std::string data_dir = data::resolveDataDir(opt.data_dir);
+  const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);
+  std::fprintf(stderr, "Loading %s\n", manifest.c_str());
+  const data::Dataset ds = data::loadDataset(manifest, data_dir);
+  const bool all = compare_ && methods_ == "all";
+  const auto methods = compare_ ? splitMethods(methods_) : std::vector<std::string>{methods_};
+  std::vector<eval::MethodSummary> summaries;
+  for (const auto& m : runnableMethods(ds, opt, methods, all))
+    summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed,
+                                             extraParams(loc::MethodSpec::parse(m).name, opt),
+                                             printProgress));
+  const std::string out = opt.out.empty() ? "runs/" + ds.name : opt.out;
+  const eval::DatasetBounds bounds = eval::computeBounds(ds);
+  eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
+  std::cout << eval::formatTable(ds, summaries, bounds);
+  std::cout << "Run directory: " << out << "\n";
+  return kSuccess;
+}
+
+}  // namespace uwbloc::apps
