@@ -9,6 +9,8 @@
 
 namespace uwbloc::loc {
 
+struct OccupancyMap::Grid : mrpt::maps::COccupancyGridMap2D {};
+
 struct MrptGridAccess {
   static mrpt::maps::COccupancyGridMap2D& grid(OccupancyMap& map) { return *map.grid_; }
   static const mrpt::maps::COccupancyGridMap2D& grid(const OccupancyMap& map) {

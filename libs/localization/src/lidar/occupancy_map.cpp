@@ -1,5 +1,7 @@
 #include "uwbloc/localization/lidar/occupancy_map.hpp"
 
+#include "mrpt_grid.hpp"
+
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/maps/COccupancyGridMap2D.h>
@@ -20,7 +22,7 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 }
 }  // namespace
 
-OccupancyMap::OccupancyMap() : grid_(std::make_unique<mrpt::maps::COccupancyGridMap2D>()) {}
+OccupancyMap::OccupancyMap() : grid_(std::make_unique<Grid>()) {}
 OccupancyMap::~OccupancyMap() = default;
 OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
 OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;

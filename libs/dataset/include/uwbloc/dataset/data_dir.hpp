@@ -11,7 +11,8 @@ namespace uwbloc::data {
 std::string resolveDataDir(const std::string& flag = "");
 
 /// A user-given path: as given if it exists, else relative to the data directory, else relative
-/// to the project's datasets/ folder (the checkout's, or share/uwbloc/datasets when installed) (so "mrpt_uwb_demo.ini" finds the bundled manifest).
+/// to the project's datasets/ folder (the checkout's, or share/uwbloc/datasets when installed),
+/// so that "mrpt_uwb_demo.ini" finds the bundled manifest.
 /// Returns the path as given when nothing matches, so that the error names it.
 std::string resolveInputPath(const std::string& path, const std::string& data_dir);
 

@@ -10,10 +10,6 @@
 
 #include "uwbloc/localization/events.hpp"
 
-namespace mrpt::maps {
-class COccupancyGridMap2D;
-}
-
 namespace uwbloc::loc {
 
 /// Axis-aligned rectangle [xmin, xmax] x [ymin, ymax] in metres.
@@ -59,7 +55,8 @@ class OccupancyMap {
 
  private:
   friend struct MrptGridAccess;  // the MRPT adapters of this library and the simulator
-  std::unique_ptr<mrpt::maps::COccupancyGridMap2D> grid_;
+  struct Grid;  // the MRPT grid (lidar/mrpt_grid.hpp)
+  std::unique_ptr<Grid> grid_;
 };
 
 }  // namespace uwbloc::loc
