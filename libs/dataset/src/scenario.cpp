@@ -163,16 +163,11 @@ std::optional<loc::OccupancyMap> scenarioMap(const Scenario& s) {
   return std::nullopt;
 }
 
-Scenario loadScenario(const std::string& path) {
-  const IniFile ini = IniFile::load(path);
-  Scenario s;
-  s.path = path;
-  const std::string dir = fs::path(path).parent_path().string();
-  s.name = ini.getString("scenario", "name", fs::path(path).stem().string());
-  readDouble(ini, "scenario", "duration", s.duration);
-  readDouble(ini, "scenario", "gt_rate", s.gt_rate);
-  readDouble(ini, "scenario", "start_time", s.start_time);
+namespace {
 
+// [world]: a map file, or bounds with rectangular obstacles.
+void readWorld(const IniFile& ini, const std::string& path, Scenario& s) {
+  const std::string dir = fs::path(path).parent_path().string();
   if (const auto m = ini.get("world", "map")) {
     s.map_file = fs::path(*m).is_absolute() ? *m : (fs::path(dir) / *m).lexically_normal().string();
   }
@@ -193,7 +188,10 @@ Scenario loadScenario(const std::string& path) {
   }
   if (!s.obstacles.empty() && !s.bounds)
     throwInputError(path, 0, "[world] obstacles need 'bounds = xmin ymin xmax ymax'");
+}
 
+// [anchors]: anchor_<id> = x y z.
+void readAnchors(const IniFile& ini, const std::string& path, Scenario& s) {
   for (const auto& key : ini.keys("anchors")) {
     if (key.rfind("anchor_", 0) != 0) continue;  // left unread: reported as unknown below
     const int line = ini.lineOf("anchors", key);
@@ -202,9 +200,10 @@ Scenario loadScenario(const std::string& path) {
     s.anchors.push_back({static_cast<int>(id), {p[0], p[1], p[2]}});
   }
   if (s.anchors.empty()) throwInputError(path, 0, "no anchors: add [anchors] anchor_<id> = x y z");
+}
 
-  s.trajectory = readTrajectory(ini, "trajectory");
-
+// [uwb]: the range model (rate, noise, bias, NLOS, dropouts, outliers, features, tag).
+void readUwb(const IniFile& ini, const std::string& path, Scenario& s) {
   auto& u = s.uwb;
   readDouble(ini, "uwb", "rate", u.rate);
   u.synchronous = boolean(ini, "uwb", "synchronous", u.synchronous);
@@ -240,7 +239,10 @@ Scenario loadScenario(const std::string& path) {
   readDouble(ini, "uwb", "max_range", u.max_range);
   if (!(u.rate > 0) || !(u.sigma >= 0))
     throwInputError(path, ini.lineOf("uwb", "rate"), "[uwb] rate must be > 0 and sigma >= 0");
+}
 
+// [odometry] and [imu]: their rates and noise.
+void readMotionSensors(const IniFile& ini, Scenario& s) {
   readDouble(ini, "odometry", "rate", s.odometry.rate);
   readDouble(ini, "odometry", "sigma_xy_per_m", s.odometry.sigma_xy_per_m);
   readDouble(ini, "odometry", "sigma_theta_per_rad", s.odometry.sigma_theta_per_rad);
@@ -251,7 +253,10 @@ Scenario loadScenario(const std::string& path) {
   readDouble(ini, "imu", "gyro_sigma", s.imu.gyro_sigma);
   readDouble(ini, "imu", "accel_bias_walk", s.imu.accel_bias_walk);
   readDouble(ini, "imu", "gyro_bias_walk", s.imu.gyro_bias_walk);
+}
 
+// [lidar]: a preset and its overrides.
+void readLidar(const IniFile& ini, const std::string& path, Scenario& s) {
   if (const auto preset = ini.get("lidar", "preset")) {
     s.lidar.enabled = *preset != "none";
     if (s.lidar.enabled) {
@@ -271,15 +276,10 @@ Scenario loadScenario(const std::string& path) {
     readDouble(ini, "lidar", "max_range", s.lidar.params.max_range);
     readDouble(ini, "lidar", "sigma", s.lidar.params.sigma);
   }
+}
 
-  if (ini.hasSection("tag2")) {
-    s.tag2.enabled = true;
-    s.tag2.trajectory = readTrajectory(ini, "tag2");
-    readDouble(ini, "tag2", "height", s.tag2.height);
-  }
-  ini.rejectUnread();
-
-  // Validate against the world.
+// The trajectories and anchors against the world; the duration of a lap when none is given.
+void validateScenario(const IniFile& ini, const std::string& path, Scenario& s) {
   const auto map = scenarioMap(s);
   if (s.lidar.enabled && !map)
     throwInputError(path, ini.lineOf("lidar", "preset"), "a LiDAR needs a [world] map or bounds");
@@ -309,6 +309,31 @@ Scenario loadScenario(const std::string& path) {
     for (const auto& [a, b] : s.trajectory.pauses) paused += b - a;
     s.duration = lap + paused;
   }
+}
+
+}  // namespace
+
+Scenario loadScenario(const std::string& path) {
+  const IniFile ini = IniFile::load(path);
+  Scenario s;
+  s.path = path;
+  s.name = ini.getString("scenario", "name", fs::path(path).stem().string());
+  readDouble(ini, "scenario", "duration", s.duration);
+  readDouble(ini, "scenario", "gt_rate", s.gt_rate);
+  readDouble(ini, "scenario", "start_time", s.start_time);
+  readWorld(ini, path, s);
+  readAnchors(ini, path, s);
+  s.trajectory = readTrajectory(ini, "trajectory");
+  readUwb(ini, path, s);
+  readMotionSensors(ini, s);
+  readLidar(ini, path, s);
+  if (ini.hasSection("tag2")) {
+    s.tag2.enabled = true;
+    s.tag2.trajectory = readTrajectory(ini, "tag2");
+    readDouble(ini, "tag2", "height", s.tag2.height);
+  }
+  ini.rejectUnread();
+  validateScenario(ini, path, s);
   return s;
 }
 

@@ -113,29 +113,14 @@ std::string formatTimeXyPhi(const std::vector<TimedPose>& poses) {
   return out;
 }
 
-Simulation simulate(const Scenario& s, uint64_t seed) {
-  Simulation sim;
-  const auto map = scenarioMap(s);
-  const loc::OccupancyMap* world = map ? &*map : nullptr;
-  // Independent streams per sensor, so enabling one sensor does not change another's noise.
-  Rng rng_uwb(seed), rng_odo(seed ^ 0x9e3779b97f4a7c15ULL), rng_imu(seed ^ 0xbf58476d1ce4e5b9ULL),
-      rng_lidar(seed ^ 0x94d049bb133111ebULL);
-  const TrajectorySampler robot(s.trajectory);
-  const std::optional<TrajectorySampler> tag2 =
-      s.tag2.enabled ? std::optional<TrajectorySampler>(TrajectorySampler(s.tag2.trajectory))
-                     : std::nullopt;
+namespace {
+
+// UWB: each anchor at its rate, staggered unless synchronous. Generated anchor by anchor and
+// sorted by the caller; the draws follow the anchor order, so they are reproducible.
+void simulateUwb(const Scenario& s, const TrajectorySampler& robot,
+                 const std::optional<TrajectorySampler>& tag2, const loc::OccupancyMap* world,
+                 Rng& rng_uwb, Simulation& sim) {
   const double t0 = s.start_time;
-
-  // Ground truth.
-  const auto gt_n = static_cast<long>(std::floor(s.duration * s.gt_rate + 1e-9));
-  for (long k = 0; k <= gt_n; ++k) {
-    const double t = k / s.gt_rate;
-    sim.ground_truth.push_back({t0 + t, robot.pose(t)});
-    if (tag2) sim.tag2_ground_truth.push_back({t0 + t, tag2->pose(t)});
-  }
-
-  // UWB: each anchor at its rate, staggered unless synchronous. Generated anchor by anchor and
-  // sorted below; the draws follow the anchor order, so they are reproducible.
   RangeModel model(s.uwb, world, rng_uwb);
   const double n_anchors = static_cast<double>(s.anchors.size());
   for (size_t i = 0; i < s.anchors.size(); ++i) {
@@ -165,74 +150,108 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
   std::stable_sort(sim.range_truth.begin(), sim.range_truth.end(),
                    [](const RangeTruth& a, const RangeTruth& b) { return a.t < b.t; });
 
-  // Odometry: increments with noise growing with the motion.
-  if (s.odometry.rate > 0) {
-    std::normal_distribution<double> n01(0.0, 1.0);
-    const auto n = static_cast<long>(std::floor(s.duration * s.odometry.rate + 1e-9));
-    Eigen::Vector3d last = robot.pose(0.0);
-    for (long k = 1; k <= n; ++k) {
-      const double t = k / s.odometry.rate;
-      const Eigen::Vector3d now = robot.pose(t);
-      const Eigen::Vector3d d = loc::relativePose(last, now);
-      const double dist = d.head<2>().norm();
-      const double sxy = s.odometry.sigma_xy_per_m * dist;
-      const double sth =
-          s.odometry.sigma_theta_per_rad * std::abs(d.z()) + s.odometry.sigma_theta_per_m * dist;
-      const double gx = n01(rng_odo), gy = n01(rng_odo), gt = n01(rng_odo);
-      loc::OdometryIncrement inc;
-      inc.t = t0 + t;
-      inc.delta << d.x() + sxy * gx, d.y() + sxy * gy, d.z() + sth * gt;
-      sim.events.emplace_back(inc);
-      last = now;
+}
+
+// Odometry: increments with noise growing with the motion.
+void simulateOdometry(const Scenario& s, const TrajectorySampler& robot, Rng& rng_odo,
+                      Simulation& sim) {
+  const double t0 = s.start_time;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const auto n = static_cast<long>(std::floor(s.duration * s.odometry.rate + 1e-9));
+  Eigen::Vector3d last = robot.pose(0.0);
+  for (long k = 1; k <= n; ++k) {
+    const double t = k / s.odometry.rate;
+    const Eigen::Vector3d now = robot.pose(t);
+    const Eigen::Vector3d d = loc::relativePose(last, now);
+    const double dist = d.head<2>().norm();
+    const double sxy = s.odometry.sigma_xy_per_m * dist;
+    const double sth =
+        s.odometry.sigma_theta_per_rad * std::abs(d.z()) + s.odometry.sigma_theta_per_m * dist;
+    const double gx = n01(rng_odo), gy = n01(rng_odo), gt = n01(rng_odo);
+    loc::OdometryIncrement inc;
+    inc.t = t0 + t;
+    inc.delta << d.x() + sxy * gx, d.y() + sxy * gy, d.z() + sth * gt;
+    sim.events.emplace_back(inc);
+    last = now;
+  }
+}
+
+// IMU: body-frame acceleration and yaw rate from the true motion, white noise and bias walk.
+void simulateImu(const Scenario& s, const TrajectorySampler& robot, Rng& rng_imu,
+                 Simulation& sim) {
+  const double t0 = s.start_time;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const double dt = 1.0 / s.imu.rate;
+  const double h = 1e-3;  // differentiation step [s]
+  Eigen::Vector2d accel_bias = Eigen::Vector2d::Zero();
+  double gyro_bias = 0.0;
+  const auto n = static_cast<long>(std::floor(s.duration * s.imu.rate + 1e-9));
+  for (long k = 0; k <= n; ++k) {
+    const double t = k * dt;
+    const Eigen::Vector3d pm = robot.pose(std::max(t - h, 0.0)), p0 = robot.pose(t),
+                          pp = robot.pose(t + h);
+    const double span = t - h < 0.0 ? h : 2.0 * h;
+    const Eigen::Vector2d acc_world =
+        (pp.head<2>() - 2.0 * p0.head<2>() + robot.pose(t - h).head<2>()) / (h * h);
+    const Eigen::Vector2d acc_body = rotation(p0.z()).transpose() * acc_world;
+    const double yaw_rate = loc::wrapAngle(pp.z() - pm.z()) / span;
+    accel_bias +=
+        s.imu.accel_bias_walk * std::sqrt(dt) * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
+    gyro_bias += s.imu.gyro_bias_walk * std::sqrt(dt) * n01(rng_imu);
+    loc::ImuSample imu;
+    imu.t = t0 + t;
+    imu.accel =
+        acc_body + accel_bias + s.imu.accel_sigma * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
+    imu.gyro_z = yaw_rate + gyro_bias + s.imu.gyro_sigma * n01(rng_imu);
+    sim.events.emplace_back(imu);
+  }
+}
+
+// LiDAR: ray-cast scans with range noise.
+void simulateLidar(const Scenario& s, const TrajectorySampler& robot,
+                   const loc::OccupancyMap& world, Rng& rng_lidar, Simulation& sim) {
+  const double t0 = s.start_time;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const auto n = static_cast<long>(std::floor(s.duration * s.lidar.rate + 1e-9));
+  for (long k = 0; k <= n; ++k) {
+    const double t = k / s.lidar.rate;
+    loc::LaserScan scan = castScan(world, robot.pose(t), s.lidar.params);
+    scan.t = t0 + t;
+    for (size_t i = 0; i < scan.ranges.size(); ++i) {
+      const double g = n01(rng_lidar);
+      if (scan.valid[i])
+        scan.ranges[i] = static_cast<float>(scan.ranges[i] + s.lidar.params.sigma * g);
     }
+    sim.events.emplace_back(std::move(scan));
+  }
+}
+
+}  // namespace
+
+Simulation simulate(const Scenario& s, uint64_t seed) {
+  Simulation sim;
+  const auto map = scenarioMap(s);
+  const loc::OccupancyMap* world = map ? &*map : nullptr;
+  // Independent streams per sensor, so enabling one sensor does not change another's noise.
+  Rng rng_uwb(seed), rng_odo(seed ^ 0x9e3779b97f4a7c15ULL), rng_imu(seed ^ 0xbf58476d1ce4e5b9ULL),
+      rng_lidar(seed ^ 0x94d049bb133111ebULL);
+  const TrajectorySampler robot(s.trajectory);
+  const std::optional<TrajectorySampler> tag2 =
+      s.tag2.enabled ? std::optional<TrajectorySampler>(TrajectorySampler(s.tag2.trajectory))
+                     : std::nullopt;
+  const double t0 = s.start_time;
+  // Ground truth.
+  const auto gt_n = static_cast<long>(std::floor(s.duration * s.gt_rate + 1e-9));
+  for (long k = 0; k <= gt_n; ++k) {
+    const double t = k / s.gt_rate;
+    sim.ground_truth.push_back({t0 + t, robot.pose(t)});
+    if (tag2) sim.tag2_ground_truth.push_back({t0 + t, tag2->pose(t)});
   }
 
-  // IMU: body-frame acceleration and yaw rate from the true motion, white noise and bias walk.
-  if (s.imu.rate > 0) {
-    std::normal_distribution<double> n01(0.0, 1.0);
-    const double dt = 1.0 / s.imu.rate;
-    const double h = 1e-3;  // differentiation step [s]
-    Eigen::Vector2d accel_bias = Eigen::Vector2d::Zero();
-    double gyro_bias = 0.0;
-    const auto n = static_cast<long>(std::floor(s.duration * s.imu.rate + 1e-9));
-    for (long k = 0; k <= n; ++k) {
-      const double t = k * dt;
-      const Eigen::Vector3d pm = robot.pose(std::max(t - h, 0.0)), p0 = robot.pose(t),
-                            pp = robot.pose(t + h);
-      const double span = t - h < 0.0 ? h : 2.0 * h;
-      const Eigen::Vector2d acc_world =
-          (pp.head<2>() - 2.0 * p0.head<2>() + robot.pose(t - h).head<2>()) / (h * h);
-      const Eigen::Vector2d acc_body = rotation(p0.z()).transpose() * acc_world;
-      const double yaw_rate = loc::wrapAngle(pp.z() - pm.z()) / span;
-      accel_bias +=
-          s.imu.accel_bias_walk * std::sqrt(dt) * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
-      gyro_bias += s.imu.gyro_bias_walk * std::sqrt(dt) * n01(rng_imu);
-      loc::ImuSample imu;
-      imu.t = t0 + t;
-      imu.accel =
-          acc_body + accel_bias + s.imu.accel_sigma * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
-      imu.gyro_z = yaw_rate + gyro_bias + s.imu.gyro_sigma * n01(rng_imu);
-      sim.events.emplace_back(imu);
-    }
-  }
-
-  // LiDAR: ray-cast scans with range noise.
-  if (s.lidar.enabled && world) {
-    std::normal_distribution<double> n01(0.0, 1.0);
-    const auto n = static_cast<long>(std::floor(s.duration * s.lidar.rate + 1e-9));
-    for (long k = 0; k <= n; ++k) {
-      const double t = k / s.lidar.rate;
-      loc::LaserScan scan = castScan(*world, robot.pose(t), s.lidar.params);
-      scan.t = t0 + t;
-      for (size_t i = 0; i < scan.ranges.size(); ++i) {
-        const double g = n01(rng_lidar);
-        if (scan.valid[i])
-          scan.ranges[i] = static_cast<float>(scan.ranges[i] + s.lidar.params.sigma * g);
-      }
-      sim.events.emplace_back(std::move(scan));
-    }
-  }
-
+  simulateUwb(s, robot, tag2, world, rng_uwb, sim);
+  if (s.odometry.rate > 0) simulateOdometry(s, robot, rng_odo, sim);
+  if (s.imu.rate > 0) simulateImu(s, robot, rng_imu, sim);
+  if (s.lidar.enabled && world) simulateLidar(s, robot, *world, rng_lidar, sim);
   loc::sortByTime(sim.events);
   return sim;
 }

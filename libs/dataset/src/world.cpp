@@ -80,6 +80,10 @@ loc::LaserScan castScan(const loc::OccupancyMap& map, const Eigen::Vector3d& rob
       obs, mrpt::poses::CPose2D(robot_pose.x(), robot_pose.y(), robot_pose.z()), kOccupiedBelow,
       static_cast<size_t>(lidar.rays), 0.0f);
   loc::LaserScan scan = fromMrpt(obs, 0.0);
+  // The spacing from the model's own field of view, in double precision (MRPT's aperture is a
+  // float).
+  const size_t n = scan.ranges.size();
+  scan.angle_increment = static_cast<float>(n > 1 ? lidar.fov / static_cast<double>(n - 1) : 0.0);
   for (size_t i = 0; i < scan.ranges.size(); ++i)
     scan.valid[i] = scan.valid[i] && scan.ranges[i] >= lidar.min_range &&
                     scan.ranges[i] < lidar.max_range;

@@ -142,42 +142,40 @@ void GraphSmoother::mergeFrontStatistics() {
   for (const auto& [name, count] : f.events) stats_.events["front:" + name] += count;
 }
 
-std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
-  if (online()) {
-    std::vector<PoseEstimate> out;
-    auto rest = front_->finishAll();
-    mergeFrontStatistics();
-    for (auto& e : rest) {
-      window_.push_back({e, e.pose, odometry_since_vertex_, ranges_since_vertex_});
-      odometry_since_vertex_.setZero();
-      ranges_since_vertex_.clear();
-      if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
-      if (auto w = solveWindow()) out.push_back(*w);
+// The rest of the online (fixed-lag) run: the front end's last estimates, then the poses still
+// inside the last window.
+std::vector<PoseEstimate> GraphSmoother::finishWindow() {
+  std::vector<PoseEstimate> out;
+  auto rest = front_->finishAll();
+  mergeFrontStatistics();
+  for (auto& e : rest) {
+    window_.push_back({e, e.pose, odometry_since_vertex_, ranges_since_vertex_});
+    odometry_since_vertex_.setZero();
+    ranges_since_vertex_.clear();
+    if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
+    if (auto w = solveWindow()) out.push_back(*w);
+  }
+  // The poses still inside the last window.
+  for (const auto& w : window_)
+    if (w.front.t > last_output_t_) {
+      PoseEstimate e = w.front;
+      e.pose = w.pose;
+      out.push_back(e);
+      last_output_t_ = e.t;
     }
-    // The poses still inside the last window.
-    for (const auto& w : window_)
-      if (w.front.t > last_output_t_) {
-        PoseEstimate e = w.front;
-        e.pose = w.pose;
-        out.push_back(e);
-        last_output_t_ = e.t;
-      }
-    return out;
-  }
-  if (front_) {
-    for (auto& e : front_->finishAll()) front_estimates_.push_back(e);
-    mergeFrontStatistics();
-  }
-  graph::RangeGraph g;
-  g.setAnchors(context_.anchors);
+  return out;
+}
+
+Eigen::Vector3d GraphSmoother::odometrySigma(const Eigen::Vector3d& d) const {
+  const double sxy = params_.odom_sigma_xy + params_.odom_sigma_xy_per_m * d.head<2>().norm();
+  const double sth = params_.odom_sigma_theta + params_.odom_sigma_theta_per_rad * std::abs(d.z());
+  return Eigen::Vector3d(sxy, sxy, sth);
+}
+
+// Vertices: the front end's estimates (with their priors and the odometry between them), or one
+// per odometry increment (dead reckoning from the start pose). Returns each vertex's time.
+std::vector<double> GraphSmoother::addPoseVertices(graph::RangeGraph& g) const {
   std::vector<double> times;
-  // Vertices: the front end's estimates, or one per odometry increment (dead reckoning).
-  auto odometrySigma = [&](const Eigen::Vector3d& d) {
-    const double sxy = params_.odom_sigma_xy + params_.odom_sigma_xy_per_m * d.head<2>().norm();
-    const double sth =
-        params_.odom_sigma_theta + params_.odom_sigma_theta_per_rad * std::abs(d.z());
-    return Eigen::Vector3d(sxy, sxy, sth);
-  };
   if (front_) {
     size_t k = 0;
     for (size_t i = 0; i < front_estimates_.size(); ++i) {
@@ -212,52 +210,57 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
       g.addOdometry(v - 1, v, o.delta, odometrySigma(o.delta));
     }
   }
-  if (times.empty()) return {};
-  // Scan matching between consecutive vertices (where both have an ICP pose at their time).
-  if (icp_ && front_) {
-    auto icpAt = [&](double t) -> const PoseEstimate* {
-      auto it = std::lower_bound(icp_poses_.begin(), icp_poses_.end(), t,
-                                 [](const PoseEstimate& p, double v) { return p.t < v - 1e-9; });
-      return it != icp_poses_.end() && std::abs(it->t - t) < 1e-6 ? &*it : nullptr;
-    };
-    for (size_t i = 1; i < times.size(); ++i) {
-      const auto* a = icpAt(times[i - 1]);
-      const auto* b = icpAt(times[i]);
-      if (a && b)
-        g.addOdometry(
-            static_cast<int>(i - 1), static_cast<int>(i), relativePose(a->pose, b->pose),
-            Eigen::Vector3d(params_.icp_sigma_xy, params_.icp_sigma_xy, params_.icp_sigma_theta));
-    }
+  return times;
+}
+
+// Scan matching between consecutive vertices (where both have an ICP pose at their time).
+void GraphSmoother::addIcpEdges(graph::RangeGraph& g, const std::vector<double>& times) const {
+  auto icpAt = [&](double t) -> const PoseEstimate* {
+    auto it = std::lower_bound(icp_poses_.begin(), icp_poses_.end(), t,
+                               [](const PoseEstimate& p, double v) { return p.t < v - 1e-9; });
+    return it != icp_poses_.end() && std::abs(it->t - t) < 1e-6 ? &*it : nullptr;
+  };
+  for (size_t i = 1; i < times.size(); ++i) {
+    const auto* a = icpAt(times[i - 1]);
+    const auto* b = icpAt(times[i]);
+    if (a && b)
+      g.addOdometry(
+          static_cast<int>(i - 1), static_cast<int>(i), relativePose(a->pose, b->pose),
+          Eigen::Vector3d(params_.icp_sigma_xy, params_.icp_sigma_xy, params_.icp_sigma_theta));
   }
-  // LiDAR corners: associated from the front end's poses, then landmark vertices and edges.
-  if (front_ && !corners_.empty()) {
-    LandmarkMap map;
-    const Eigen::Matrix2d r =
-        Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
-    struct Obs {
-      int vertex, landmark;
-      Eigen::Vector2d z;
-    };
-    std::vector<Obs> obs;
-    size_t v = 0;
-    for (const auto& sc : corners_) {
-      while (v + 1 < times.size() && times[v] < sc.t - 1e-9) ++v;
-      if (std::abs(times[v] - sc.t) > 1e-6) continue;  // a scan without a front-end estimate
-      const auto& e = front_estimates_[v];
-      for (const auto& c : sc.corners)
-        obs.push_back({static_cast<int>(v), map.integrate(e.pose, e.covariance, c, r), c});
-    }
-    std::vector<int> vertex_of(map.landmarks().size(), -1);
-    for (const auto& o : obs) {
-      const auto& lm = map.landmarks()[static_cast<size_t>(o.landmark)];
-      if (lm.observations < params_.landmark_min_obs) continue;
-      if (vertex_of[static_cast<size_t>(o.landmark)] < 0)
-        vertex_of[static_cast<size_t>(o.landmark)] = g.addLandmark(lm.position);
-      g.addLandmarkObservation(o.vertex, vertex_of[static_cast<size_t>(o.landmark)], o.z,
-                               params_.landmark_sigma);
-    }
+}
+
+// LiDAR corners: associated from the front end's poses, then landmark vertices and edges.
+void GraphSmoother::addLandmarks(graph::RangeGraph& g, const std::vector<double>& times) const {
+  LandmarkMap map;
+  const Eigen::Matrix2d r =
+      Eigen::Matrix2d::Identity() * params_.landmark_sigma * params_.landmark_sigma;
+  struct Obs {
+    int vertex, landmark;
+    Eigen::Vector2d z;
+  };
+  std::vector<Obs> obs;
+  size_t v = 0;
+  for (const auto& sc : corners_) {
+    while (v + 1 < times.size() && times[v] < sc.t - 1e-9) ++v;
+    if (std::abs(times[v] - sc.t) > 1e-6) continue;  // a scan without a front-end estimate
+    const auto& e = front_estimates_[v];
+    for (const auto& c : sc.corners)
+      obs.push_back({static_cast<int>(v), map.integrate(e.pose, e.covariance, c, r), c});
   }
-  // Each range constrains the vertex nearest to it in time.
+  std::vector<int> vertex_of(map.landmarks().size(), -1);
+  for (const auto& o : obs) {
+    const auto& lm = map.landmarks()[static_cast<size_t>(o.landmark)];
+    if (lm.observations < params_.landmark_min_obs) continue;
+    if (vertex_of[static_cast<size_t>(o.landmark)] < 0)
+      vertex_of[static_cast<size_t>(o.landmark)] = g.addLandmark(lm.position);
+    g.addLandmarkObservation(o.vertex, vertex_of[static_cast<size_t>(o.landmark)], o.z,
+                             params_.landmark_sigma);
+  }
+}
+
+// Each range constrains the vertex nearest to it in time.
+void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& times) {
   for (const auto& r : ranges_) {
     const auto it = std::lower_bound(times.begin(), times.end(), r.measurement.t);
     size_t i = static_cast<size_t>(it - times.begin());
@@ -270,6 +273,21 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
     g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range,
                r.measurement.tag_on_robot);
   }
+}
+
+std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
+  if (online()) return finishWindow();
+  if (front_) {
+    for (auto& e : front_->finishAll()) front_estimates_.push_back(e);
+    mergeFrontStatistics();
+  }
+  graph::RangeGraph g;
+  g.setAnchors(context_.anchors);
+  const std::vector<double> times = addPoseVertices(g);
+  if (times.empty()) return {};
+  if (icp_ && front_) addIcpEdges(g, times);
+  if (front_ && !corners_.empty()) addLandmarks(g, times);
+  addRanges(g, times);
   g.build(graphParams());
   if (!g.solve().usable) countRejection("graph_not_usable");
   std::vector<PoseEstimate> out;

@@ -259,24 +259,18 @@ double stepDecay(int k, int t_max, double delta_e0, double delta_e1) {
   return std::pow(delta_e0 / delta_e1, exponent);
 }
 
-Eigen::VectorXd cauchyMutationPaper(const Eigen::VectorXd& best, double u) {
+SmallVec cauchyMutationPaper(const Eigen::Ref<const Eigen::VectorXd>& best, double u) {
   return best * (1.0 + 0.03 * std::tan((0.35 * u - 0.2) * M_PI));
 }
 
-Eigen::VectorXd cauchyMutationScaled(const Eigen::VectorXd& best, const Eigen::VectorXd& spread,
-                                     double u) {
+SmallVec cauchyMutationScaled(const Eigen::Ref<const Eigen::VectorXd>& best,
+                              const Eigen::Ref<const Eigen::VectorXd>& spread, double u) {
   return best + 0.03 * std::tan((0.35 * u - 0.2) * M_PI) * spread;
 }
 
-Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, const Box& box,
-                                      int iterations, double initial_step, Rng& rng,
-                                      double* best_fitness, long* evaluations) {
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const auto n = x.rows(), k = x.cols();
-  if (k > 32) throw std::invalid_argument("BeetleSwarm: at most 32 dimensions");
-  long evals = 0;
-  const Eigen::VectorXd vmax = params_.max_speed * (box.hi - box.lo);
-  velocity_.setZero(n, k);  // keeps its storage when the size repeats
+void BeetleSwarm::start(const Eigen::MatrixXd& x, const Objective& f, Search& s) {
+  const auto n = x.rows();
+  velocity_.setZero(n, x.cols());  // keeps its storage when the size repeats
   personal_best_ = x;
   personal_value_.resize(n);
   current_value_.resize(n);
@@ -284,122 +278,151 @@ Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, co
   for (Eigen::Index i = 0; i < n; ++i) {
     personal_value_(i) = f(x.row(i).transpose());
     current_value_(i) = personal_value_(i);
-    ++evals;
+    ++s.evaluations;
     if (personal_value_(i) > personal_value_(best_i)) best_i = i;
   }
-  SmallVec swarm_best = personal_best_.row(best_i).transpose();
-  double swarm_value = personal_value_(best_i);
-  double step = initial_step, d = params_.antenna;
+  s.swarm_best = personal_best_.row(best_i).transpose();
+  s.swarm_value = personal_value_(best_i);
   // Each beetle's own multiplier on the scheduled step (1 when adaptation is off).
   step_scale_.setOnes(n);
-  SmallVec xi(k), v(k), probe(k), moved(k);
-  for (int it = 0; it < iterations; ++it) {
-    const double omega =
-        inertiaWeight(it, iterations, params_.omega_max, params_.omega_min);  // eq. (18)
-    Eigen::Index iter_best = 0;
-    double iter_value = -1e300;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      xi = x.row(i).transpose();
-      // Eq. (21): inertia plus pulls towards the personal and the swarm best.
-      if (params_.normalize_pulls)
-        v = omega * velocity_.row(i).transpose() +
-            params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
-            params_.c2 * u(rng) * towards(xi, swarm_best);
-      else
-        v = omega * velocity_.row(i).transpose() +
-            params_.c1 * u(rng) * (personal_best_.row(i).transpose() - xi) +
-            params_.c2 * u(rng) * (swarm_best - xi);
-      v = v.cwiseMax(-vmax).cwiseMin(vmax);
-      if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
-      // A beetle that is both its own and the swarm's best gets no pull, and its inertia dies
-      // away: it would stop searching. It then explores like a BAS beetle, along a random unit
-      // direction (eq. 8).
-      if (v.norm() < 1e-3) {
-        std::normal_distribution<double> g(0.0, 1.0);
-        for (Eigen::Index j = 0; j < k; ++j) v(j) = g(rng);
-        if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
-        v /= std::max(v.norm(), 1e-300);
-      }
-      // Eq. (22)-(24): antennae along V, then a step along V towards the better antenna. The
-      // antenna length follows the step (BAS's eq. 11, delta = c d with c = 1) once the step
-      // has shrunk below the eq. (13) length, so that the two antennae sample at the scale
-      // the beetle moves at.
-      const double beetle_step = step * step_scale_(i);
-      const double antenna = std::min(d, beetle_step);
-      probe = xi + v * antenna / 2.0;
-      clampInto(probe, box);
-      const double fr = f(probe);
-      probe = xi - v * antenna / 2.0;
-      clampInto(probe, box);
-      const double fl = f(probe);
-      // Equal antennae (a plateau) give eq. (24) no direction; the beetle then tries one of
-      // the two at random instead of standing still, if so configured.
-      double direction = sign(fr - fl);
-      if (direction == 0.0 && params_.random_tie_direction) direction = u(rng) < 0.5 ? -1.0 : 1.0;
-      moved = xi + beetle_step * v * direction;
-      clampInto(moved, box);
-      double fm = f(moved);
-      evals += 3;
-      velocity_.row(i) = v.transpose();
-      const bool worse = fm < current_value_(i);
-      if (params_.adaptive_step)
-        step_scale_(i) = worse ? step_scale_(i) * params_.step_shrink
-                               : std::min(1.0, step_scale_(i) * params_.step_grow);
-      if (params_.greedy && worse) {
-        fm = current_value_(i);  // stay
-      } else {
-        x.row(i) = moved.transpose();
-        current_value_(i) = fm;
-      }
-      if (fm > personal_value_(i)) {
-        personal_value_(i) = fm;
-        personal_best_.row(i) = x.row(i);
-      }
-      if (fm > iter_value) {
-        iter_value = fm;
-        iter_best = i;
-      }
-      if (fm > swarm_value) {
-        swarm_value = fm;
-        swarm_best = x.row(i).transpose();
-      }
-    }
-    // Eq. (25): Cauchy mutation of this iteration's best beetle, kept only if it improves.
-    xi = x.row(iter_best).transpose();
-    if (params_.frame_invariant_mutation) {
-      probe = x.colwise().mean().transpose();  // the swarm's mean, then its spread per axis
-      for (Eigen::Index c = 0; c < k; ++c)
-        probe(c) =
-            std::sqrt((x.col(c).array() - probe(c)).square().sum() / std::max<double>(n - 1, 1));
-      if (params_.move_mask.size() == k) probe = probe.cwiseProduct(params_.move_mask);
-      moved = xi + 0.03 * std::tan((0.35 * u(rng) - 0.2) * M_PI) * probe;
-    } else {
-      moved = xi * (1.0 + 0.03 * std::tan((0.35 * u(rng) - 0.2) * M_PI));
-    }
-    clampInto(moved, box);
-    const double fmu = f(moved);
-    ++evals;
-    if (fmu > iter_value) {
-      x.row(iter_best) = moved.transpose();
-      current_value_(iter_best) = fmu;
-      if (fmu > personal_value_(iter_best)) {
-        personal_value_(iter_best) = fmu;
-        personal_best_.row(iter_best) = moved.transpose();
-      }
-      if (fmu > swarm_value) {
-        swarm_value = fmu;
-        swarm_best = moved;
-      }
-    }
-    if (params_.schedule == "paper")
-      step *= stepDecay(it + 1, iterations, params_.delta_e0, params_.delta_e1);  // eq. (19)-(20)
-    else
-      step *= std::pow(params_.final_step_ratio, 1.0 / std::max(iterations, 1));
-    d = params_.antenna_decay * d + 0.01;  // eq. (13)
+}
+
+SmallVec BeetleSwarm::velocity(const Eigen::MatrixXd& x, Eigen::Index i, const Search& s,
+                               const Eigen::VectorXd& vmax, Rng& rng) const {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto k = x.cols();
+  const SmallVec xi = x.row(i).transpose();
+  SmallVec v(k);
+  // Eq. (21): inertia plus pulls towards the personal and the swarm best.
+  if (params_.normalize_pulls)
+    v = s.omega * velocity_.row(i).transpose() +
+        params_.c1 * u(rng) * towards(xi, personal_best_.row(i).transpose()) +
+        params_.c2 * u(rng) * towards(xi, s.swarm_best);
+  else
+    v = s.omega * velocity_.row(i).transpose() +
+        params_.c1 * u(rng) * (personal_best_.row(i).transpose() - xi) +
+        params_.c2 * u(rng) * (s.swarm_best - xi);
+  v = v.cwiseMax(-vmax).cwiseMin(vmax);
+  if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
+  // A beetle that is both its own and the swarm's best gets no pull, and its inertia dies
+  // away: it would stop searching. It then explores like a BAS beetle, along a random unit
+  // direction (eq. 8).
+  if (v.norm() < 1e-3) {
+    std::normal_distribution<double> g(0.0, 1.0);
+    for (Eigen::Index j = 0; j < k; ++j) v(j) = g(rng);
+    if (params_.move_mask.size() == k) v = v.cwiseProduct(params_.move_mask);
+    v /= std::max(v.norm(), 1e-300);
   }
-  if (best_fitness) *best_fitness = swarm_value;
-  if (evaluations) *evaluations += evals;
-  return Eigen::VectorXd(swarm_best);
+  return v;
+}
+
+void BeetleSwarm::moveBeetle(Eigen::MatrixXd& x, Eigen::Index i, const Objective& f,
+                             const Box& box, const SmallVec& v, Search& s, Rng& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const SmallVec xi = x.row(i).transpose();
+  // Eq. (22)-(24): antennae along V, then a step along V towards the better antenna. The antenna
+  // length follows the step (BAS's eq. 11, delta = c d with c = 1) once the step has shrunk
+  // below the eq. (13) length, so that the two antennae sample at the scale the beetle moves at.
+  const double beetle_step = s.step * step_scale_(i);
+  const double antenna = std::min(s.antenna, beetle_step);
+  SmallVec probe = xi + v * antenna / 2.0;
+  clampInto(probe, box);
+  const double fr = f(probe);
+  probe = xi - v * antenna / 2.0;
+  clampInto(probe, box);
+  const double fl = f(probe);
+  // Equal antennae (a plateau) give eq. (24) no direction; the beetle then tries one of the two
+  // at random instead of standing still, if so configured.
+  double direction = sign(fr - fl);
+  if (direction == 0.0 && params_.random_tie_direction) direction = u(rng) < 0.5 ? -1.0 : 1.0;
+  SmallVec moved = xi + beetle_step * v * direction;
+  clampInto(moved, box);
+  double fm = f(moved);
+  s.evaluations += 3;
+  velocity_.row(i) = v.transpose();
+  const bool worse = fm < current_value_(i);
+  if (params_.adaptive_step)
+    step_scale_(i) = worse ? step_scale_(i) * params_.step_shrink
+                           : std::min(1.0, step_scale_(i) * params_.step_grow);
+  if (params_.greedy && worse) {
+    fm = current_value_(i);  // stay
+  } else {
+    x.row(i) = moved.transpose();
+    current_value_(i) = fm;
+  }
+  if (fm > personal_value_(i)) {
+    personal_value_(i) = fm;
+    personal_best_.row(i) = x.row(i);
+  }
+  if (fm > s.iteration_value) {
+    s.iteration_value = fm;
+    s.iteration_best = i;
+  }
+  if (fm > s.swarm_value) {
+    s.swarm_value = fm;
+    s.swarm_best = x.row(i).transpose();
+  }
+}
+
+void BeetleSwarm::mutateIterationBest(Eigen::MatrixXd& x, const Objective& f, const Box& box,
+                                      Search& s, Rng& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto n = x.rows(), k = x.cols();
+  const Eigen::Index b = s.iteration_best;
+  // Eq. (25): Cauchy mutation of this iteration's best beetle, kept only if it improves.
+  const SmallVec best = x.row(b).transpose();
+  SmallVec moved;
+  if (params_.frame_invariant_mutation) {
+    SmallVec spread = x.colwise().mean().transpose();  // the swarm's mean, then its spread
+    for (Eigen::Index c = 0; c < k; ++c)
+      spread(c) =
+          std::sqrt((x.col(c).array() - spread(c)).square().sum() / std::max<double>(n - 1, 1));
+    if (params_.move_mask.size() == k) spread = spread.cwiseProduct(params_.move_mask);
+    moved = cauchyMutationScaled(best, spread, u(rng));
+  } else {
+    moved = cauchyMutationPaper(best, u(rng));
+  }
+  clampInto(moved, box);
+  const double fmu = f(moved);
+  ++s.evaluations;
+  if (fmu <= s.iteration_value) return;
+  x.row(b) = moved.transpose();
+  current_value_(b) = fmu;
+  if (fmu > personal_value_(b)) {
+    personal_value_(b) = fmu;
+    personal_best_.row(b) = moved.transpose();
+  }
+  if (fmu > s.swarm_value) {
+    s.swarm_value = fmu;
+    s.swarm_best = moved;
+  }
+}
+
+Eigen::VectorXd BeetleSwarm::maximize(Eigen::MatrixXd& x, const Objective& f, const Box& box,
+                                      int iterations, double initial_step, Rng& rng,
+                                      double* best_fitness, long* evaluations) {
+  if (x.cols() > 32) throw std::invalid_argument("BeetleSwarm: at most 32 dimensions");
+  const Eigen::VectorXd vmax = params_.max_speed * (box.hi - box.lo);
+  Search s;
+  start(x, f, s);
+  s.step = initial_step;
+  s.antenna = params_.antenna;
+  for (int it = 0; it < iterations; ++it) {
+    s.omega = inertiaWeight(it, iterations, params_.omega_max, params_.omega_min);  // eq. (18)
+    s.iteration_best = 0;
+    s.iteration_value = -1e300;
+    for (Eigen::Index i = 0; i < x.rows(); ++i)
+      moveBeetle(x, i, f, box, velocity(x, i, s, vmax, rng), s, rng);
+    mutateIterationBest(x, f, box, s, rng);
+    if (params_.schedule == StepSchedule::kPaper)
+      s.step *= stepDecay(it + 1, iterations, params_.delta_e0, params_.delta_e1);  // eq. (19)-(20)
+    else
+      s.step *= std::pow(params_.final_step_ratio, 1.0 / std::max(iterations, 1));
+    s.antenna = params_.antenna_decay * s.antenna + 0.01;  // eq. (13)
+  }
+  if (best_fitness) *best_fitness = s.swarm_value;
+  if (evaluations) *evaluations += s.evaluations;
+  return Eigen::VectorXd(s.swarm_best);
 }
 
 std::unique_ptr<Optimizer> makeOptimizer(const std::string& name) {
@@ -420,7 +443,7 @@ std::unique_ptr<Optimizer> makeOptimizer(const std::string& name) {
     return std::make_unique<Ibas>(p, "IBAS-dist");
   }
   if (name == "ibas-paper") {
-    p.schedule = "paper";
+    p.schedule = StepSchedule::kPaper;
     p.adaptive_step = false;
     return std::make_unique<Ibas>(p, "IBAS-paper");
   }

@@ -83,6 +83,12 @@ class GraphSmoother : public UwbEstimator {
   /// Adds the front end's counts to this method's, its rejections as "front:<reason>", and its
   /// range decisions (so the report scores the front end's NLOS test under this method's name).
   void mergeFrontStatistics();
+  std::vector<PoseEstimate> finishWindow();
+  Eigen::Vector3d odometrySigma(const Eigen::Vector3d& increment) const;
+  std::vector<double> addPoseVertices(graph::RangeGraph& g) const;
+  void addIcpEdges(graph::RangeGraph& g, const std::vector<double>& times) const;
+  void addLandmarks(graph::RangeGraph& g, const std::vector<double>& times) const;
+  void addRanges(graph::RangeGraph& g, const std::vector<double>& times);
 
   GraphSmootherParams params_;
   EstimatorContext context_;

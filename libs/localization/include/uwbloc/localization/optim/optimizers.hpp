@@ -55,10 +55,16 @@ double stepDecay(int k, int t_max, double delta_e0 = 0.95, double delta_e1 = 0.3
 
 /// Eq. (25), the paper's Cauchy mutation: x_best (1 + 0.03 tan((0.35 u - 0.2) pi)), u ~ U(0,1).
 /// It scales with |x| and so suits functions centred on the origin, not positions in a frame.
-Eigen::VectorXd cauchyMutationPaper(const Eigen::VectorXd& best, double u);
+/// (The swarm runs this function and cauchyMutationScaled; the tests check the same ones.)
+SmallVec cauchyMutationPaper(const Eigen::Ref<const Eigen::VectorXd>& best, double u);
 /// Frame-invariant form: x_best + 0.03 s tan((0.35 u - 0.2) pi), s the swarm's spread per axis.
-Eigen::VectorXd cauchyMutationScaled(const Eigen::VectorXd& best, const Eigen::VectorXd& spread,
-                                     double u);
+SmallVec cauchyMutationScaled(const Eigen::Ref<const Eigen::VectorXd>& best,
+                              const Eigen::Ref<const Eigen::VectorXd>& spread, double u);
+
+/// How the IBAS step shrinks: "paper" multiplies it by eq. (19)'s factor every iteration (eq. 20),
+/// which shrinks it by 1e-5 within 40 of 200 iterations and freezes the swarm; "geometric"
+/// shrinks it evenly from the initial step to `final_step_ratio` of it over the run.
+enum class StepSchedule { kGeometric, kPaper };
 
 struct IbasParams {
   double omega_max = 0.9, omega_min = 0.4;  ///< eq. (18)
@@ -70,10 +76,7 @@ struct IbasParams {
   double antenna_decay = 0.95;              ///< eq. (13): d <- decay d + 0.01
   bool frame_invariant_mutation = false;    ///< eq. (25) as printed, or scaled by the spread
   double max_speed = 0.2;                   ///< velocity clamp, as a fraction of the box size
-  /// Step schedule: "paper" multiplies the step by eq. (19)'s factor every iteration (eq. 20),
-  /// which shrinks it by 1e-5 within 40 of 200 iterations and freezes the swarm; "geometric"
-  /// shrinks it evenly from the initial step to `final_step_ratio` of it over the run.
-  std::string schedule = "geometric";
+  StepSchedule schedule = StepSchedule::kGeometric;  ///< see StepSchedule
   /// A beetle keeps its place when its eq. (24) step would make it worse.
   bool greedy = true;
   /// Per-dimension mask on the velocity (empty: all 1). A 0 keeps that coordinate of every
@@ -108,6 +111,27 @@ class BeetleSwarm {
   const Eigen::VectorXd& values() const { return current_value_; }
 
  private:
+  /// The state of one maximize() run besides the per-beetle arrays.
+  struct Search {
+    SmallVec swarm_best;
+    double swarm_value = -1e300;
+    Eigen::Index iteration_best = 0;
+    double iteration_value = -1e300;
+    double omega = 0.0, step = 0.0, antenna = 0.0;
+    long evaluations = 0;
+  };
+  /// Evaluates the swarm where it stands: personal and swarm bests, unit step scales.
+  void start(const Eigen::MatrixXd& x, const Objective& f, Search& s);
+  /// Eq. (21): beetle i's velocity (a random unit direction when it has no pull).
+  SmallVec velocity(const Eigen::MatrixXd& x, Eigen::Index i, const Search& s,
+                    const Eigen::VectorXd& vmax, Rng& rng) const;
+  /// Eq. (22)-(24): antennae along v and the step towards the better one.
+  void moveBeetle(Eigen::MatrixXd& x, Eigen::Index i, const Objective& f, const Box& box,
+                  const SmallVec& v, Search& s, Rng& rng);
+  /// Eq. (25) on the iteration's best beetle, kept when it improves.
+  void mutateIterationBest(Eigen::MatrixXd& x, const Objective& f, const Box& box, Search& s,
+                           Rng& rng);
+
   IbasParams params_;
   Eigen::MatrixXd velocity_, personal_best_;
   Eigen::VectorXd personal_value_, current_value_, step_scale_;
