@@ -32,15 +32,38 @@ std::string readAll(const std::string& path) {
   return text;
 }
 
-}  // namespace
+// FLASER n r1..rn ...: a 180-degree scan of n rays, right to left; readings of 80 m and more
+// are no returns.
+template <class Num>
+loc::LaserScan flaserScan(size_t n, double t, Num& num) {
+  loc::LaserScan scan;
+  scan.t = t;
+  scan.max_range = 81.0f;
+  scan.angle_min = static_cast<float>(-M_PI / 2);
+  scan.angle_increment = static_cast<float>(n > 1 ? M_PI / (n - 1) : 0.0);
+  scan.ranges.resize(n);
+  scan.valid.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    scan.ranges[i] = static_cast<float>(num(1 + i, "range"));
+    scan.valid[i] = scan.ranges[i] > 0.0f && scan.ranges[i] < 80.0f;
+  }
+  return scan;
+}
 
-ImportSummary importCarmen(const std::string& log_path, const std::string& out_dir) {
+struct CarmenLog {
+  std::vector<loc::Event> events;    ///< scans and odometry increments, in time order
+  std::vector<TimedPose> reference;  ///< the FLASER lines' corrected poses
+};
+
+// The scans, odometry and corrected poses of a CARMEN log.
+CarmenLog parseCarmen(const std::string& log_path) {
+  CarmenLog log;
+  auto& events = log.events;
+  auto& reference = log.reference;
   const std::string text = readAll(log_path);
   std::istringstream lines(text);
   std::string line;
   int number = 0;
-  std::vector<loc::Event> events;
-  std::vector<TimedPose> reference;
   std::optional<Eigen::Vector3d> last_odom;
   bool has_odom_lines = text.find("\nODOM ") != std::string::npos;
   auto addOdometry = [&](double t, const Eigen::Vector3d& pose) {
@@ -72,17 +95,7 @@ ImportSummary importCarmen(const std::string& log_path, const std::string& out_d
       const auto n = static_cast<size_t>(num(0, "num_readings"));
       if (f.size() < n + 10) throwInputError(log_path, number, "FLASER line too short");
       const double t = num(n + 7, "ipc_timestamp");
-      loc::LaserScan scan;
-      scan.t = t;
-      scan.max_range = 81.0f;
-      scan.angle_min = static_cast<float>(-M_PI / 2);
-      scan.angle_increment = static_cast<float>(n > 1 ? M_PI / (n - 1) : 0.0);
-      scan.ranges.resize(n);
-      scan.valid.resize(n);
-      for (size_t i = 0; i < n; ++i) {
-        scan.ranges[i] = static_cast<float>(num(1 + i, "range"));
-        scan.valid[i] = scan.ranges[i] > 0.0f && scan.ranges[i] < 80.0f;
-      }
+      loc::LaserScan scan = flaserScan(n, t, num);
       events.emplace_back(std::move(scan));
       reference.push_back({t, {num(n + 1, "x"), num(n + 2, "y"), num(n + 3, "theta")}});
       if (!has_odom_lines)
@@ -94,6 +107,15 @@ ImportSummary importCarmen(const std::string& log_path, const std::string& out_d
   std::stable_sort(reference.begin(), reference.end(),
                    [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
 
+  return log;
+}
+
+}  // namespace
+
+ImportSummary importCarmen(const std::string& log_path, const std::string& out_dir) {
+  const CarmenLog log = parseCarmen(log_path);
+  const auto& events = log.events;
+  const auto& reference = log.reference;
   ensureDirectory(out_dir);
   const fs::path out(out_dir);
   writeRawlog((out / "carmen.rawlog").string(), events);

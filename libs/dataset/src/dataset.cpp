@@ -1,5 +1,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 
+#include <cstdio>
+
 #include <cmath>
 #include <map>
 #include <tuple>
@@ -82,6 +84,19 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
   return ds;
+}
+
+std::string formatRangeFeatures(const std::vector<loc::Event>& events) {
+  std::string out = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
+  char buf[160];
+  for (const auto& e : events) {
+    const auto* r = std::get_if<uwb::Range>(&e);
+    if (!r || r->tag_id != 0 || !r->rx_power_dbm || !r->fp_power_dbm) continue;
+    std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f\n", r->t, r->anchor_id, r->range,
+                  *r->rx_power_dbm, *r->fp_power_dbm);
+    out += buf;
+  }
+  return out;
 }
 
 }  // namespace uwbloc::data

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
@@ -15,16 +16,6 @@
 namespace fs = std::filesystem;
 
 namespace uwbloc::data {
-
-namespace {
-
-struct FeatureRow {
-  double t;
-  int id;
-  double range, rssi, rssi_fp;
-};
-
-}  // namespace
 
 TwrFile readHanyangStatic(const std::string& path) {
   TwrFile out;
@@ -57,62 +48,59 @@ TwrFile readHanyangStatic(const std::string& path) {
   return out;
 }
 
-ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
-                            const HanyangImportParams& params) {
+namespace {
+
+// The run's anchor files, A<id>.csv, sorted.
+std::vector<std::string> anchorFiles(const std::string& run_dir) {
   std::error_code ec;
   if (!fs::is_directory(run_dir, ec)) throwInputError(run_dir, 0, "run folder not found");
-  std::vector<std::string> anchor_files;
+  std::vector<std::string> files;
   for (const auto& entry : fs::directory_iterator(run_dir)) {
     const std::string name = entry.path().filename().string();
     if (name.size() > 5 && name[0] == 'A' && std::isdigit(static_cast<unsigned char>(name[1])) &&
         entry.path().extension() == ".csv")
-      anchor_files.push_back(entry.path().string());
+      files.push_back(entry.path().string());
   }
-  std::sort(anchor_files.begin(), anchor_files.end());
-  if (anchor_files.empty())
-    throwInputError(run_dir, 0, "no anchor files (A<id>.csv) in the run folder");
-  const std::string trajectory = (fs::path(run_dir) / "trajectory.csv").string();
+  std::sort(files.begin(), files.end());
+  if (files.empty()) throwInputError(run_dir, 0, "no anchor files (A<id>.csv) in the run folder");
+  return files;
+}
 
-  std::vector<uwb::Anchor> anchors;
-  std::vector<loc::Event> events;
-  std::vector<FeatureRow> features;
-  for (const auto& file : anchor_files) {
-    uwb::Anchor anchor;
-    bool have_anchor = false;
-    forEachRow(file, [&](int line, const std::vector<std::string>& f) {
-      if (!f.empty() && f[0] == "%time") return;
-      if (f.size() != 9)
-        throwInputError(file, line, "expected 9 fields, got " + std::to_string(f.size()));
-      const double t = parseNumber(f[1], file, line, "field.stamp") * 1e-9;
-      const int id = static_cast<int>(parseNumber(f[2], file, line, "field.id"));
-      const Eigen::Vector3d pos(parseNumber(f[3], file, line, "field.x"),
-                                parseNumber(f[4], file, line, "field.y"),
-                                parseNumber(f[5], file, line, "field.z"));
-      if (!have_anchor) {
-        anchor = {id, pos};
-        have_anchor = true;
-      } else if (id != anchor.id || (pos - anchor.position).norm() > 0.05) {
-        throwInputError(file, line, "anchor id or position differs from the file's first row");
-      }
-      uwb::Range r;
-      r.t = t;
-      r.anchor_id = id;
-      r.range = parseNumber(f[6], file, line, "field.distanceFromTag");
-      r.tag_on_robot << 0.0, 0.0, params.tag_height;
-      r.rx_power_dbm = parseNumber(f[7], file, line, "field.rssi");
-      r.fp_power_dbm = parseNumber(f[8], file, line, "field.rssi_fp");
-      events.emplace_back(r);
-      features.push_back({t, id, r.range, *r.rx_power_dbm, *r.fp_power_dbm});
-    });
-    if (!have_anchor) throwInputError(file, 0, "no ranges");
-    if (uwb::findAnchor(anchors, anchor.id))
-      throwInputError(file, 0, "anchor id " + std::to_string(anchor.id) + " appears twice");
-    anchors.push_back(anchor);
-  }
-  loc::sortByTime(events);
-  std::stable_sort(features.begin(), features.end(),
-                   [](const FeatureRow& a, const FeatureRow& b) { return a.t < b.t; });
+// One anchor's file: its ranges (with received and first-path power) into `events`; returns the
+// anchor, whose id and position every row repeats.
+uwb::Anchor readAnchorFile(const std::string& file, const HanyangImportParams& params,
+                           std::vector<loc::Event>& events) {
+  uwb::Anchor anchor;
+  bool have_anchor = false;
+  forEachRow(file, [&](int line, const std::vector<std::string>& f) {
+    if (!f.empty() && f[0] == "%time") return;
+    if (f.size() != 9)
+      throwInputError(file, line, "expected 9 fields, got " + std::to_string(f.size()));
+    const int id = static_cast<int>(parseNumber(f[2], file, line, "field.id"));
+    const Eigen::Vector3d pos(parseNumber(f[3], file, line, "field.x"),
+                              parseNumber(f[4], file, line, "field.y"),
+                              parseNumber(f[5], file, line, "field.z"));
+    if (!have_anchor) {
+      anchor = {id, pos};
+      have_anchor = true;
+    } else if (id != anchor.id || (pos - anchor.position).norm() > 0.05) {
+      throwInputError(file, line, "anchor id or position differs from the file's first row");
+    }
+    uwb::Range r;
+    r.t = parseNumber(f[1], file, line, "field.stamp") * 1e-9;
+    r.anchor_id = id;
+    r.range = parseNumber(f[6], file, line, "field.distanceFromTag");
+    r.tag_on_robot << 0.0, 0.0, params.tag_height;
+    r.rx_power_dbm = parseNumber(f[7], file, line, "field.rssi");
+    r.fp_power_dbm = parseNumber(f[8], file, line, "field.rssi_fp");
+    events.emplace_back(r);
+  });
+  if (!have_anchor) throwInputError(file, 0, "no ranges");
+  return anchor;
+}
 
+// trajectory.csv: timestamp [ns], x, y, z, heading [deg].
+std::vector<TimedPose> readReference(const std::string& trajectory) {
   std::vector<TimedPose> gt;
   forEachRow(trajectory, [&](int line, const std::vector<std::string>& f) {
     if (!f.empty() && f[0] == "timestamp") return;
@@ -126,22 +114,30 @@ ImportSummary importHanyang(const std::string& run_dir, const std::string& out_d
     gt.push_back(p);
   });
   if (gt.empty()) throwInputError(trajectory, 0, "no reference rows");
+  return gt;
+}
+
+}  // namespace
+
+ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
+                            const HanyangImportParams& params) {
+  std::vector<uwb::Anchor> anchors;
+  std::vector<loc::Event> events;
+  for (const auto& file : anchorFiles(run_dir)) {
+    const uwb::Anchor anchor = readAnchorFile(file, params, events);
+    if (uwb::findAnchor(anchors, anchor.id))
+      throwInputError(file, 0, "anchor id " + std::to_string(anchor.id) + " appears twice");
+    anchors.push_back(anchor);
+  }
+  loc::sortByTime(events);
+  const auto gt = readReference((fs::path(run_dir) / "trajectory.csv").string());
 
   ensureDirectory(out_dir);
   const fs::path out(out_dir);
   writeRawlog((out / "uwb.rawlog").string(), events);
   writeFileAtomic((out / "ground_truth.tum").string(), formatTum(gt));
-
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
-  char buf[256];
-
-  std::string feat = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
-  for (const auto& f : features) {
-    std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f\n", f.t, f.id, f.range, f.rssi,
-                  f.rssi_fp);
-    feat += buf;
-  }
-  writeFileAtomic((out / "range_features.csv").string(), feat);
+  writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(events));
 
   ManifestDraft m;
   m.comments = {"Imported by 'uwbloc import hanyang' from " + fs::absolute(run_dir).string()};

@@ -139,33 +139,11 @@ std::string resolvePath(const std::string& value, const std::string& manifest_di
 
 }  // namespace
 
-Manifest loadManifest(const std::string& path, const std::string& data_dir) {
-  const IniFile ini = IniFile::load(path);
-  Manifest m;
-  m.path = path;
-  const std::string dir = fs::path(path).parent_path().string();
-  auto pathKey = [&](const char* key) {
-    return resolvePath(ini.getString("dataset", key, ""), dir, data_dir, path,
-                       ini.lineOf("dataset", key));
-  };
-  m.name = ini.getString("dataset", "name", fs::path(path).stem().string());
-  m.rawlog = pathKey("rawlog");
-  if (m.rawlog.empty()) throwInputError(path, 0, "missing key 'rawlog' in section [dataset]");
-  m.ground_truth = pathKey("ground_truth");
-  m.map = pathKey("map");
-  m.gt_max_gap = ini.getDouble("dataset", "gt_max_gap", m.gt_max_gap);
-  m.range_features = pathKey("range_features");
-  try {
-    m.ground_truth_format = parseGroundTruthFormat(
-        ini.getString("dataset", "ground_truth_format", m.ground_truth.empty() ? "none" : ""));
-  } catch (const InputError& e) {
-    throwInputError(path, ini.lineOf("dataset", "ground_truth_format"), e.what());
-  }
-  if (!m.ground_truth.empty() && m.ground_truth_format == GroundTruthFormat::kNone)
-    throwInputError(path, ini.lineOf("dataset", "ground_truth"),
-                    "ground_truth given without ground_truth_format");
+namespace {
 
-  // Anchors: a CSV and/or MRPT's beacon_NNN_* keys.
+// [anchors]: a CSV and/or MRPT's beacon_NNN_* keys, then the frame transform to the map / GT.
+std::vector<uwb::Anchor> readAnchors(const IniFile& ini, const std::string& path,
+                                     const std::string& dir, const std::string& data_dir) {
   std::vector<uwb::Anchor> anchors;
   if (const auto csv = ini.get("anchors", "anchors_csv"))
     anchors = loadAnchorsCsv(
@@ -206,8 +184,57 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   }
   if (anchors.empty())
     throwInputError(path, 0, "no anchors: give [anchors] anchors_csv or beacon_NNN_ID/X/Y/Z keys");
-  m.anchors = anchors;
+  return anchors;
+}
 
+// [bounds]: what the Cramér-Rao bounds need.
+BoundsSpec readBounds(const IniFile& ini, const std::string& path) {
+  BoundsSpec b;
+  b.range_sigma = ini.getDouble("bounds", "range_sigma", b.range_sigma);
+  b.accel_psd = ini.getDouble("bounds", "accel_psd", b.accel_psd);
+  b.motion = ini.getString("bounds", "motion", b.motion);
+  if (b.motion != "cv" && b.motion != "odometry")
+    throwInputError(path, ini.lineOf("bounds", "motion"),
+                    "[bounds] motion must be cv or odometry");
+  b.odom_sigma_xy_per_m = ini.getDouble("bounds", "odom_sigma_xy_per_m", b.odom_sigma_xy_per_m);
+  b.odom_sigma_theta_per_rad =
+      ini.getDouble("bounds", "odom_sigma_theta_per_rad", b.odom_sigma_theta_per_rad);
+  b.odom_sigma_theta_per_m =
+      ini.getDouble("bounds", "odom_sigma_theta_per_m", b.odom_sigma_theta_per_m);
+  if (!(b.range_sigma > 0) || !(b.accel_psd > 0))
+    throwInputError(path, ini.lineOf("bounds", "range_sigma"), "[bounds] values must be > 0");
+  return b;
+}
+
+}  // namespace
+
+Manifest loadManifest(const std::string& path, const std::string& data_dir) {
+  const IniFile ini = IniFile::load(path);
+  Manifest m;
+  m.path = path;
+  const std::string dir = fs::path(path).parent_path().string();
+  auto pathKey = [&](const char* key) {
+    return resolvePath(ini.getString("dataset", key, ""), dir, data_dir, path,
+                       ini.lineOf("dataset", key));
+  };
+  m.name = ini.getString("dataset", "name", fs::path(path).stem().string());
+  m.rawlog = pathKey("rawlog");
+  if (m.rawlog.empty()) throwInputError(path, 0, "missing key 'rawlog' in section [dataset]");
+  m.ground_truth = pathKey("ground_truth");
+  m.map = pathKey("map");
+  m.gt_max_gap = ini.getDouble("dataset", "gt_max_gap", m.gt_max_gap);
+  m.range_features = pathKey("range_features");
+  try {
+    m.ground_truth_format = parseGroundTruthFormat(
+        ini.getString("dataset", "ground_truth_format", m.ground_truth.empty() ? "none" : ""));
+  } catch (const InputError& e) {
+    throwInputError(path, ini.lineOf("dataset", "ground_truth_format"), e.what());
+  }
+  if (!m.ground_truth.empty() && m.ground_truth_format == GroundTruthFormat::kNone)
+    throwInputError(path, ini.lineOf("dataset", "ground_truth"),
+                    "ground_truth given without ground_truth_format");
+
+  m.anchors = readAnchors(ini, path, dir, data_dir);
   if (ini.get("tag", "height")) m.tag_height = ini.getDouble("tag", "height");
   if (ini.get("tag", "lever_arm_x") || ini.get("tag", "lever_arm_y"))
     m.lever_arm = Eigen::Vector2d(ini.getDouble("tag", "lever_arm_x", 0.0),
@@ -217,23 +244,7 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
     if (!(*m.uwb_sigma > 0))
       throwInputError(path, ini.lineOf("uwb", "sigma"), "[uwb] sigma must be > 0");
   }
-  if (ini.hasSection("bounds")) {
-    BoundsSpec b;
-    b.range_sigma = ini.getDouble("bounds", "range_sigma", b.range_sigma);
-    b.accel_psd = ini.getDouble("bounds", "accel_psd", b.accel_psd);
-    b.motion = ini.getString("bounds", "motion", b.motion);
-    if (b.motion != "cv" && b.motion != "odometry")
-      throwInputError(path, ini.lineOf("bounds", "motion"),
-                      "[bounds] motion must be cv or odometry");
-    b.odom_sigma_xy_per_m = ini.getDouble("bounds", "odom_sigma_xy_per_m", b.odom_sigma_xy_per_m);
-    b.odom_sigma_theta_per_rad =
-        ini.getDouble("bounds", "odom_sigma_theta_per_rad", b.odom_sigma_theta_per_rad);
-    b.odom_sigma_theta_per_m =
-        ini.getDouble("bounds", "odom_sigma_theta_per_m", b.odom_sigma_theta_per_m);
-    if (!(b.range_sigma > 0) || !(b.accel_psd > 0))
-      throwInputError(path, ini.lineOf("bounds", "range_sigma"), "[bounds] values must be > 0");
-    m.bounds = b;
-  }
+  if (ini.hasSection("bounds")) m.bounds = readBounds(ini, path);
   ini.rejectUnread();
   return m;
 }

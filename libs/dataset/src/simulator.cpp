@@ -7,6 +7,7 @@
 #include <random>
 #include <sstream>
 
+#include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
@@ -367,17 +368,9 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
   writeFileAtomic((out / "range_truth.csv").string(), formatRangeTruth(sim.range_truth));
   char buf[256];
 
-  if (s.uwb.features) {
-    std::string feat = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
-    for (const auto& e : sim.events) {
-      const auto* r = std::get_if<uwb::Range>(&e);
-      if (!r || r->tag_id != 0 || !r->rx_power_dbm) continue;
-      std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f\n", r->t, r->anchor_id, r->range,
-                    *r->rx_power_dbm, *r->fp_power_dbm);
-      feat += buf;
-    }
-    writeFileAtomic((out / "range_features.csv").string(), feat);
-  }
+  if (s.uwb.features)
+    writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(sim.events));
+
 
   const auto map = scenarioMap(s);
   if (map) map->save((out / "map.gridmap.gz").string());

@@ -133,18 +133,10 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
   return out.str();
 }
 
-std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
-                        const DatasetBounds& bounds) {
-  std::ostringstream out;
-  char buf[512];
-  std::snprintf(buf, sizeof buf, "Dataset %s: %.1f s, %zu events, %zu ground-truth poses\n",
-                dataset.name.c_str(), dataset.duration(), dataset.events.size(),
-                dataset.ground_truth.size());
-  out << buf;
-  std::snprintf(buf, sizeof buf, "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %9s %8s %7s\n",
-                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "mae",
-                "median", "p95", "max", "ms/step", "xRT", "reject");
-  out << buf;
+namespace {
+
+// One row per method; undefined metrics (no estimate with ground truth) print as "-".
+void tableRows(std::ostringstream& out, const std::vector<MethodSummary>& methods) {
   for (const auto& m : methods) {
     // Undefined metrics (no estimate with ground truth) print as "-".
     auto num = [](double v, int width, int precision) {
@@ -164,8 +156,12 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
         << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " " << std::setw(7)
         << totalRejected(m) << "\n";
   }
-  out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
-         "samples with an estimate within 1 s; xRT = real-time factor.\n";
+}
+
+// Efficiency against the Cramér-Rao bounds, and the NLOS detectors' scores.
+void boundsAndNlosLines(std::ostringstream& out, const data::Dataset& dataset,
+                        const std::vector<MethodSummary>& methods, const DatasetBounds& bounds) {
+  char buf[512];
   if (std::isfinite(bounds.static_rmse)) {
     std::snprintf(buf, sizeof buf,
                   "Bounds: sqrt(mean static CRLB) %.4f m, sqrt(mean posterior CRLB, %s motion) "
@@ -190,6 +186,10 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                   sc.pose.false_alarm(), sc.raycast.recall(), sc.raycast.false_alarm());
     out << buf;
   }
+}
+
+// Rejections by reason and anchor, and other events, per method.
+void rejectionLines(std::ostringstream& out, const std::vector<MethodSummary>& methods) {
   for (const auto& m : methods) {
     if (m.rejected.empty()) continue;
     out << "  " << m.spec << " rejected:";
@@ -214,6 +214,27 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
     for (const auto& [name, count] : m.events) out << " " << name << "=" << count;
     out << "\n";
   }
+}
+
+}  // namespace
+
+std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
+                        const DatasetBounds& bounds) {
+  std::ostringstream out;
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "Dataset %s: %.1f s, %zu events, %zu ground-truth poses\n",
+                dataset.name.c_str(), dataset.duration(), dataset.events.size(),
+                dataset.ground_truth.size());
+  out << buf;
+  std::snprintf(buf, sizeof buf, "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %9s %8s %7s\n",
+                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "mae",
+                "median", "p95", "max", "ms/step", "xRT", "reject");
+  out << buf;
+  tableRows(out, methods);
+  out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
+         "samples with an estimate within 1 s; xRT = real-time factor.\n";
+  boundsAndNlosLines(out, dataset, methods, bounds);
+  rejectionLines(out, methods);
   return out.str();
 }
 

@@ -39,4 +39,7 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
 /// anchor. Returns how many ranges received features.
 long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& events);
 
+/// The side file's text: one row per range of the robot's tag that carries its powers.
+std::string formatRangeFeatures(const std::vector<loc::Event>& events);
+
 }  // namespace uwbloc::data
