@@ -9,6 +9,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/ini_file.hpp"
 #include "uwbloc/dataset/manifest.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 
@@ -240,4 +241,22 @@ TEST(Dataset, RangeFeatureSideFileErrors) {
                              "12.5,3,4.0,-80.1\n");
   expectErrorMentions<InputError>([&] { data::attachRangeFeatures(bad, events); },
                                   {bad + ":2", "expected 5 fields"});
+}
+
+TEST(Ini, CommentsStartOnlyAtTheLineStartOrAfterWhiteSpace) {
+  // MRPT's INI files use '#', ';' and '//' comments; inside a value they are characters.
+  const auto ini = data::IniFile::fromString(
+      "# a comment\n"
+      "; another\n"
+      "// and another\n"
+      "[pf-ibas+graph]\n"
+      "front = pf-ibas:n=60;ibas_step=0.2   # the front end's own parameters\n"
+      "map = /data//maps/office.yaml ; a path with a double slash\n"
+      "label = room#3\n"
+      "note = a value\t// tab before the comment\n",
+      "test.ini");
+  EXPECT_EQ(*ini.get("pf-ibas+graph", "front"), "pf-ibas:n=60;ibas_step=0.2");
+  EXPECT_EQ(*ini.get("pf-ibas+graph", "map"), "/data//maps/office.yaml");
+  EXPECT_EQ(*ini.get("pf-ibas+graph", "label"), "room#3");
+  EXPECT_EQ(*ini.get("pf-ibas+graph", "note"), "a value");
 }

@@ -3,9 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include "uwbloc/dataset/data_dir.hpp"
 
 namespace uwbloc::test {
 
@@ -38,6 +41,31 @@ void expectErrorMentions(Body body, std::initializer_list<std::string> parts) {
   }
 }
 
+/// True when running in CI (CI=true), where a missing shared dataset is a failure.
+inline bool inCi() {
+  const char* ci = std::getenv("CI");
+  return ci && std::string(ci) == "true";
+}
+
+/// A path in the shared data directory, found at run time: $UWBLOC_DATA_DIR, else
+/// ../shared/datasets beside the project (see data::resolveDataDir).
+inline std::filesystem::path sharedData(const std::string& relative) {
+  return std::filesystem::path(data::resolveDataDir()) / relative;
+}
+
 constexpr const char* kDemoRawlog = "/usr/share/mrpt/datasets/uwb_ro-localization_demo.rawlog";
 
 }  // namespace uwbloc::test
+
+/// Stops the test when a shared dataset is missing: skipped (with the file named) outside CI,
+/// failed in CI, so that a missing dataset never turns CI green.
+#define UWBLOC_REQUIRE_SHARED_DATA(path)                                                   \
+  do {                                                                                     \
+    if (!std::filesystem::exists(path)) {                                                  \
+      if (::uwbloc::test::inCi())                                                          \
+        FAIL() << "missing shared dataset " << (path) << " (CI=true: the datasets must be " \
+               << "at ../shared/datasets or $UWBLOC_DATA_DIR)";                            \
+      GTEST_SKIP() << "missing shared dataset " << (path)                                  \
+                   << " (set UWBLOC_DATA_DIR to the shared datasets folder)";              \
+    }                                                                                      \
+  } while (0)

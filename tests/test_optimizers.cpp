@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "uwbloc/evaluation/benchmark_functions.hpp"
 #include "uwbloc/evaluation/optimizer_table.hpp"
 #include "uwbloc/localization/optim/optimizers.hpp"
 

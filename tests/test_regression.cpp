@@ -47,9 +47,8 @@ class Hanyang : public ::testing::TestWithParam<std::tuple<std::string, double, 
 // The best UWB-only method must beat the dataset authors' own LS and ESKF 2D RMSE.
 TEST_P(Hanyang, BestUwbOnlyBeatsTheAuthorsEstimators) {
   const auto [run, authors_ls, authors_eskf] = GetParam();
-  const auto src = std::filesystem::path(UWBLOC_TEST_DATA_DIR) / "hanyang_outdoor_uwb" / run;
-  ASSERT_TRUE(std::filesystem::is_directory(src))
-      << "data directory missing: " << src << " (CI expects ../shared/datasets)";
+  const auto src = test::sharedData("hanyang_outdoor_uwb/" + std::string(run));
+  UWBLOC_REQUIRE_SHARED_DATA(src);
   const auto out = test::scratchDir();
   const auto summary = data::importHanyang(src.string(), out.string());
   const auto ds = data::loadDataset(summary.manifest, "");
@@ -77,8 +76,8 @@ INSTANTIATE_TEST_SUITE_P(Runs, Hanyang,
 
 // CMU Plaza: range + odometry smoothing against dead reckoning and per-epoch multilateration.
 TEST(Plaza, GraphSmoothingBeatsDeadReckoningAndMultilateration) {
-  const auto src = std::filesystem::path(UWBLOC_TEST_DATA_DIR) / "plaza_cmu_range_odometry";
-  ASSERT_TRUE(std::filesystem::is_directory(src)) << src << " (CI expects ../shared/datasets)";
+  const auto src = test::sharedData("plaza_cmu_range_odometry");
+  UWBLOC_REQUIRE_SHARED_DATA(src);
   const auto out = test::scratchDir();
   const auto ds = data::loadDataset(data::importPlaza(src.string(), out.string()).manifest, "");
   // The ranges read about 2.8 m long on the median: the graph estimates a bias per beacon.

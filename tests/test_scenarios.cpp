@@ -63,8 +63,8 @@ TEST(Greenhouse, TableBesideThePaper) {
 
 TEST(Carmen, ImportAndAugmentIntel) {
   const auto log =
-      std::filesystem::path(UWBLOC_TEST_DATA_DIR) / "carmen_2d_laser/intel-corrected.log.gz";
-  ASSERT_TRUE(std::filesystem::exists(log)) << log << " (CI expects ../shared/datasets)";
+      test::sharedData("carmen_2d_laser/intel-corrected.log.gz");
+  UWBLOC_REQUIRE_SHARED_DATA(log);
   const auto dir = test::scratchDir();
   const auto imported = data::importCarmen(log.string(), (dir / "intel").string());
   EXPECT_EQ(imported.scans, 910);  // scans

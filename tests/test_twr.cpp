@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <numeric>
 
+#include "test_helpers.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/uwb/twr.hpp"
 
@@ -47,9 +48,8 @@ TEST(Twr, DoubleSidedCancelsClockDrift) {
 // the device's Distance column closely.
 TEST(Twr, ReproducesHanyangDeviceDistance) {
   const std::filesystem::path dir =
-      std::filesystem::path(UWBLOC_TEST_DATA_DIR) / "hanyang_outdoor_uwb/static/LOS/height_100.0cm";
-  ASSERT_TRUE(std::filesystem::is_directory(dir))
-      << "data directory missing: " << dir << " (CI expects ../shared/datasets)";
+      test::sharedData("hanyang_outdoor_uwb/static/LOS/height_100.0cm");
+  UWBLOC_REQUIRE_SHARED_DATA(dir);
   std::vector<double> pooled;
   double worst_std = 0.0;
   int files = 0;

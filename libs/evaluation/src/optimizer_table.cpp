@@ -1,3 +1,4 @@
+#include "uwbloc/evaluation/benchmark_functions.hpp"
 #include "uwbloc/evaluation/optimizer_table.hpp"
 
 #include <algorithm>
