@@ -6,3 +6,12 @@ function(uwbloc_configure_target target)
     target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wno-deprecated-copy)
   endif()
 endfunction()
+
+# One project library: its sources, its public headers under include/ (installed as they are),
+# the standard and warnings. Dependencies are linked by the caller.
+function(uwbloc_library target)
+  add_library(${target} ${ARGN})
+  target_include_directories(${target} PUBLIC $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+                                              $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  uwbloc_configure_target(${target})
+endfunction()

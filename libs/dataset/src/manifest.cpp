@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
@@ -17,26 +18,26 @@ namespace fs = std::filesystem;
 
 namespace uwbloc::data {
 
+namespace {
+constexpr std::pair<GroundTruthFormat, const char*> kFormatNames[] = {
+    {GroundTruthFormat::kStepXyPhi, "step_xyphi"},
+    {GroundTruthFormat::kTimeXyPhi, "time_xyphi"},
+    {GroundTruthFormat::kTum, "tum"},
+    {GroundTruthFormat::kNone, "none"},
+};
+}  // namespace
+
 GroundTruthFormat parseGroundTruthFormat(const std::string& text) {
-  if (text == "step_xyphi") return GroundTruthFormat::kStepXyPhi;
-  if (text == "time_xyphi") return GroundTruthFormat::kTimeXyPhi;
-  if (text == "tum") return GroundTruthFormat::kTum;
-  if (text.empty() || text == "none") return GroundTruthFormat::kNone;
+  if (text.empty()) return GroundTruthFormat::kNone;
+  for (const auto& [format, name] : kFormatNames)
+    if (text == name) return format;
   throw InputError("unknown ground-truth format '" + text +
                    "' (expected step_xyphi, time_xyphi or tum)");
 }
 
 const char* toString(GroundTruthFormat f) {
-  switch (f) {
-    case GroundTruthFormat::kStepXyPhi:
-      return "step_xyphi";
-    case GroundTruthFormat::kTimeXyPhi:
-      return "time_xyphi";
-    case GroundTruthFormat::kTum:
-      return "tum";
-    case GroundTruthFormat::kNone:
-      return "none";
-  }
+  for (const auto& [format, name] : kFormatNames)
+    if (format == f) return name;
   return "none";
 }
 

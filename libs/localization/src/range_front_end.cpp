@@ -45,6 +45,30 @@ std::optional<AcceptedRange> UwbEstimator::acceptRange(const Event& event) {
   return accepted;
 }
 
+std::optional<PoseEstimate> EpochUwbEstimator::doProcess(const Event& event) {
+  const auto accepted = acceptRange(event);
+  if (!accepted) return std::nullopt;
+  if (auto epoch = epochs_.add(*accepted)) return onEpoch(*epoch);
+  return std::nullopt;
+}
+
+std::optional<PoseEstimate> EpochUwbEstimator::doFinish() {
+  if (auto epoch = epochs_.flush()) return onEpoch(*epoch);
+  return std::nullopt;
+}
+
+uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::PlanarRange>& ranges) {
+  switch (solver) {
+    case MultilaterationSolver::kGaussNewton:
+      return uwb::solveGaussNewton(ranges);
+    case MultilaterationSolver::kChan:
+      return uwb::solveChan(ranges);
+    case MultilaterationSolver::kLinearLS:
+      break;
+  }
+  return uwb::solveLinearLS(ranges);
+}
+
 std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& r) {
   std::optional<std::vector<AcceptedRange>> closed;
   if (!open_.empty()) {

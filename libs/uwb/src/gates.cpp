@@ -2,36 +2,30 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace uwbloc::uwb {
 
+namespace {
+constexpr std::pair<RejectReason, const char*> kReasonNames[] = {
+    {RejectReason::kNonFinite, "non_finite"},
+    {RejectReason::kZero, "zero_range"},
+    {RejectReason::kNegative, "negative_range"},
+    {RejectReason::kBeyondMax, "beyond_max_range"},
+    {RejectReason::kBelowHeight, "below_height_difference"},
+    {RejectReason::kUnknownAnchor, "unknown_anchor"},
+    {RejectReason::kIncrement, "increment_queue"},
+    {RejectReason::kChiSquare, "chi_square"},
+    {RejectReason::kThreeSigma, "three_sigma"},
+    {RejectReason::kInnovation, "innovation_gate"},
+    {RejectReason::kTimeBackwards, "time_backwards"},
+    {RejectReason::kOtherTag, "other_tag"},
+};
+}  // namespace
+
 const char* toString(RejectReason r) {
-  switch (r) {
-    case RejectReason::kNonFinite:
-      return "non_finite";
-    case RejectReason::kZero:
-      return "zero_range";
-    case RejectReason::kNegative:
-      return "negative_range";
-    case RejectReason::kBeyondMax:
-      return "beyond_max_range";
-    case RejectReason::kBelowHeight:
-      return "below_height_difference";
-    case RejectReason::kUnknownAnchor:
-      return "unknown_anchor";
-    case RejectReason::kIncrement:
-      return "increment_queue";
-    case RejectReason::kChiSquare:
-      return "chi_square";
-    case RejectReason::kThreeSigma:
-      return "three_sigma";
-    case RejectReason::kInnovation:
-      return "innovation_gate";
-    case RejectReason::kTimeBackwards:
-      return "time_backwards";
-    case RejectReason::kOtherTag:
-      return "other_tag";
-  }
+  for (const auto& [reason, name] : kReasonNames)
+    if (reason == r) return name;
   return "unknown";
 }
 

@@ -2,20 +2,19 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <utility>
 
 namespace uwbloc::uwb {
 
 const char* toString(FixStatus s) {
-  switch (s) {
-    case FixStatus::kOk:
-      return "ok";
-    case FixStatus::kTooFewAnchors:
-      return "too_few_anchors";
-    case FixStatus::kDegenerate:
-      return "degenerate_geometry";
-    case FixStatus::kNoConvergence:
-      return "no_convergence";
-  }
+  constexpr std::pair<FixStatus, const char*> kNames[] = {
+      {FixStatus::kOk, "ok"},
+      {FixStatus::kTooFewAnchors, "too_few_anchors"},
+      {FixStatus::kDegenerate, "degenerate_geometry"},
+      {FixStatus::kNoConvergence, "no_convergence"},
+  };
+  for (const auto& [status, name] : kNames)
+    if (status == s) return name;
   return "unknown";
 }
 

@@ -7,40 +7,16 @@ namespace uwbloc::loc {
 MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
                                                    const MultilaterationParams& params,
                                                    const EstimatorContext& context)
-    : UwbEstimator(params.front, context.anchors),
+    : EpochUwbEstimator(params.front, context.anchors, params.epoch_window),
       solver_(solver),
-      params_(params),
-      epochs_(params.epoch_window) {
+      params_(params) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
 }
 
-std::optional<PoseEstimate> MultilaterationEstimator::doProcess(const Event& event) {
-  const auto accepted = acceptRange(event);
-  if (!accepted) return std::nullopt;
-  if (auto epoch = epochs_.add(*accepted)) return solveEpoch(*epoch);
-  return std::nullopt;
-}
-
-std::optional<PoseEstimate> MultilaterationEstimator::doFinish() {
-  if (auto epoch = epochs_.flush()) return solveEpoch(*epoch);
-  return std::nullopt;
-}
-
-std::optional<PoseEstimate> MultilaterationEstimator::solveEpoch(
+std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
   const auto planar = toPlanar(epoch, params_.front.sigma);
-  uwb::Fix fix;
-  switch (solver_) {
-    case MultilaterationSolver::kLinearLS:
-      fix = uwb::solveLinearLS(planar);
-      break;
-    case MultilaterationSolver::kGaussNewton:
-      fix = uwb::solveGaussNewton(planar);
-      break;
-    case MultilaterationSolver::kChan:
-      fix = uwb::solveChan(planar);
-      break;
-  }
+  const uwb::Fix fix = multilaterate(solver_, planar);
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));
     return std::nullopt;

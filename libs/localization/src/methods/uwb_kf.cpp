@@ -7,30 +7,13 @@
 namespace uwbloc::loc {
 
 UwbKf::UwbKf(const UwbKfParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context.anchors), params_(params), epochs_(params.epoch_window) {
-  if (params_.solver != "ls" && params_.solver != "gn" && params_.solver != "chan")
-    throw ParamError("uwb-kf: parameter 'solver' must be ls, gn or chan, got '" + params_.solver +
-                     "'");
+    : EpochUwbEstimator(params.front, context.anchors, params.epoch_window), params_(params) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
-}
-
-std::optional<PoseEstimate> UwbKf::doProcess(const Event& event) {
-  const auto accepted = acceptRange(event);
-  if (!accepted) return std::nullopt;
-  if (auto epoch = epochs_.add(*accepted)) return onEpoch(*epoch);
-  return std::nullopt;
-}
-
-std::optional<PoseEstimate> UwbKf::doFinish() {
-  if (auto epoch = epochs_.flush()) return onEpoch(*epoch);
-  return std::nullopt;
 }
 
 std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epoch) {
   const auto planar = toPlanar(epoch, params_.front.sigma);
-  const uwb::Fix fix = params_.solver == "gn"     ? uwb::solveGaussNewton(planar)
-                       : params_.solver == "chan" ? uwb::solveChan(planar)
-                                                  : uwb::solveLinearLS(planar);
+  const uwb::Fix fix = multilaterate(params_.solver, planar);
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));
     return std::nullopt;

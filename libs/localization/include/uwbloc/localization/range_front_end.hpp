@@ -2,6 +2,7 @@
 // time order, the optional increment-queue gate, and the height projection of eq. (3).
 #pragma once
 
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -79,6 +80,32 @@ class EpochBuffer {
   double window_;
   std::vector<AcceptedRange> open_;
 };
+
+/// Base of the per-epoch UWB methods: accepted ranges are grouped into epochs and each closed
+/// epoch (and the last, open one at the end of the stream) goes to onEpoch().
+class EpochUwbEstimator : public UwbEstimator {
+ protected:
+  EpochUwbEstimator(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
+                    double window)
+      : UwbEstimator(params, std::move(anchors)), epochs_(window) {}
+  std::optional<PoseEstimate> doProcess(const Event& event) final;
+  std::optional<PoseEstimate> doFinish() final;
+  virtual std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) = 0;
+
+ private:
+  EpochBuffer epochs_;
+};
+
+/// The per-epoch multilateration solvers.
+enum class MultilaterationSolver { kLinearLS, kGaussNewton, kChan };
+constexpr std::array<EnumName<MultilaterationSolver>, 3> enumNames(MultilaterationSolver) {
+  return {{{MultilaterationSolver::kLinearLS, "ls"},
+           {MultilaterationSolver::kGaussNewton, "gn"},
+           {MultilaterationSolver::kChan, "chan"}}};
+}
+
+/// One fix from an epoch's planar ranges with the chosen solver.
+uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::PlanarRange>& ranges);
 
 /// Planar ranges of an epoch, ready for the multilateration solvers.
 std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, double sigma);

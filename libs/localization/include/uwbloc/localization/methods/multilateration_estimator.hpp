@@ -9,8 +9,6 @@
 
 namespace uwbloc::loc {
 
-enum class MultilaterationSolver { kLinearLS, kGaussNewton, kChan };
-
 struct MultilaterationParams {
   RangeFrontEndParams front;   ///< range checks and gates
   double epoch_window = 0.15;  ///< ranges within this span form one epoch [s]
@@ -22,21 +20,17 @@ struct MultilaterationParams {
   }
 };
 
-class MultilaterationEstimator : public UwbEstimator {
+class MultilaterationEstimator : public EpochUwbEstimator {
  public:
   MultilaterationEstimator(MultilaterationSolver solver, const MultilaterationParams& params,
                            const EstimatorContext& context);
 
  protected:
-  std::optional<PoseEstimate> doProcess(const Event& event) override;
-  std::optional<PoseEstimate> doFinish() override;
+  std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) override;
 
  private:
-  std::optional<PoseEstimate> solveEpoch(const std::vector<AcceptedRange>& epoch);
-
   MultilaterationSolver solver_;
   MultilaterationParams params_;
-  EpochBuffer epochs_;
   HeadingFromMotion heading_;
   std::optional<Eigen::Vector2d> last_tag_;
   double last_t_ = 0.0;

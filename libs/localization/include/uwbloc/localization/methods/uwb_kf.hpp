@@ -14,8 +14,8 @@ namespace uwbloc::loc {
 struct UwbKfParams {
   RangeFrontEndParams front;
   double epoch_window = 0.15;  ///< ranges within this span form one epoch [s]
-  std::string solver = "gn";   ///< multilateration for the measurement: ls (the greenhouse
-                               ///< paper), gn or chan
+  /// Multilateration for the measurement: ls (the greenhouse paper), gn or chan.
+  MultilaterationSolver solver = MultilaterationSolver::kGaussNewton;
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 13.8;          ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
@@ -35,20 +35,16 @@ struct UwbKfParams {
   }
 };
 
-class UwbKf : public UwbEstimator {
+class UwbKf : public EpochUwbEstimator {
  public:
   UwbKf(const UwbKfParams& params, const EstimatorContext& context);
 
  protected:
-  std::optional<PoseEstimate> doProcess(const Event& event) override;
-  std::optional<PoseEstimate> doFinish() override;
+  std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) override;
   void reset() override { initialised_ = false; }
 
  private:
-  std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch);
-
   UwbKfParams params_;
-  EpochBuffer epochs_;
   HeadingFromMotion heading_;
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
