@@ -27,7 +27,8 @@ void UwbEkf::predict(double t) {
 
 kalman::Innovation<1> UwbEkf::innovate(const AcceptedRange& r,
                                        Eigen::Matrix<double, 1, 4>* hj) const {
-  // h(x) = || (x, y, z_tag) - anchor ||, H = [dx/h, dy/h, 0, 0].
+  // The measured 3D distance (PF-IBAS paper eq. (3)-(4) before the height projection):
+  // h(x) = || (x, y, z_tag) - anchor ||, H = dh/dx = [dx/h, dy/h, 0, 0].
   const Eigen::Vector3d tag(x_(0), x_(1), r.measurement.tag_on_robot.z());
   const Eigen::Vector3d diff = tag - r.anchor;
   const double h = std::max(diff.norm(), 1e-6);

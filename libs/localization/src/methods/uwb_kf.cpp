@@ -36,10 +36,12 @@ std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epo
     }
     initialise();
   } else {
+    // Greenhouse eq. (15), lines 1-2: X = F X, P = F P F^T + Q.
     kalman::predictConstantVelocity(x_, p_, std::max(0.0, t - t_), params_.accel_psd,
                                     params_.velocity_tau);
     t_ = std::max(t_, t);
-    // The fix measures the position: H = [I 0], R = the fix's covariance.
+    // Eq. (6): the fix measures the position, H = [I 0], R = the fix's covariance; eq. (15)
+    // lines 3-6 are the toolkit's steps (1)-(6).
     Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
     h.leftCols<2>().setIdentity();
     const auto inn = kalman::innovate<4, 2>(p_, z - x_.head<2>(), h, r);

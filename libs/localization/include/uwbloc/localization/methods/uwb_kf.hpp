@@ -1,5 +1,9 @@
 // uwb-kf: linear Kalman filter, constant-velocity state [x y vx vy] of the tag, measuring the
-// position given by per-epoch multilateration (loosely coupled; the greenhouse paper's setup).
+// position given by per-epoch multilateration (loosely coupled; the greenhouse paper's setup):
+//   state eq. (1), X_k = F X_{k-1} + W_k with F of eq. (2)-(3) (here with an optional velocity
+//   decay), measurement Z_k = H X_k + V_k of eq. (6) with H = [I 0] and R the fix's covariance,
+//   and the filter of eq. (15) without the Sage-Husa terms q̂, r̂ (the Joseph form replaces its
+//   last line). The fix itself is eq. (9)-(14) (solver=ls), Gauss-Newton or Chan.
 #pragma once
 
 #include <Eigen/Core>
