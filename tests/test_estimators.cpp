@@ -29,7 +29,7 @@ const data::Dataset& room() {
 // fails here until it states its bound.
 const std::map<std::string, double> kRoomBound = {
     {"uwb-ls", 0.70},         {"uwb-gn", 0.60},         {"uwb-chan", 0.60},
-    {"uwb-kf", 0.40},         {"uwb-ekf", 0.30},        {"odom", 0.05},
+    {"uwb-kf", 0.33},         {"uwb-ekf", 0.25},        {"odom", 0.05},
     {"lidar-icp", 0.17},      {"lidar-mcl", 0.03},      {"fused-naive", 0.04},
     {"fused-pf", 0.03},       {"pf-sir", 0.03},         {"pf-ibas", 0.04},
     {"pf-ibas-stratified", 0.04}, {"uwb-pf", 0.15},     {"graph-uwb-odom", 0.23},

@@ -15,6 +15,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/LU>
 
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/uwb/gates.hpp"

@@ -1,0 +1,81 @@
+// The shared Kalman steps against hand-computed values: innovation, gate, Joseph update,
+// constant-velocity predict, the start from a fix and the UWB-only pose.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "uwbloc/localization/kalman/kalman.hpp"
+
+using namespace uwbloc;
+using namespace uwbloc::loc::kalman;
+
+TEST(Kalman, OneUpdateByHand) {
+  // State [x v], P = diag(4, 1), x measured (H = [1 0], R = 1), z = 2 from x = 0:
+  // S = 5, d^2 = 4/5, K = [4/5 0], x = [1.6 0], P = diag(0.8, 1) (Joseph: 0.16 + 0.64).
+  Vec<2> x(0.0, 0.0);
+  Mat<2, 2> p = Eigen::Vector2d(4.0, 1.0).asDiagonal();
+  const Mat<1, 2> h(1.0, 0.0);
+  const Mat<1, 1> r(1.0);
+  const auto inn = innovate<2, 1>(p, Vec<1>(2.0), h, r);
+  EXPECT_NEAR(inn.s(0, 0), 5.0, 1e-12);
+  EXPECT_NEAR(inn.d2, 0.8, 1e-12);
+  EXPECT_FALSE(inGate(inn, uwb::ChiSquareGate(0.5)));
+  EXPECT_TRUE(inGate(inn, uwb::ChiSquareGate(1.0)));
+  josephUpdate<2, 1>(x, p, inn, h, r);
+  EXPECT_NEAR(x(0), 1.6, 1e-12);
+  EXPECT_NEAR(x(1), 0.0, 1e-12);
+  EXPECT_NEAR(p(0, 0), 0.8, 1e-12);
+  EXPECT_NEAR(p(1, 1), 1.0, 1e-12);
+  EXPECT_NEAR(p(0, 1), 0.0, 1e-12);
+}
+
+TEST(Kalman, JosephUpdateWithCorrelatedState) {
+  // P = [[2 1] [1 2]], H = [1 0], R = 1, y = 1: S = 3, K = [2/3 1/3],
+  // x = [2/3 1/3], P = P - K S K^T = [[2/3 1/3] [1/3 5/3]].
+  Vec<2> x = Vec<2>::Zero();
+  Mat<2, 2> p;
+  p << 2, 1, 1, 2;
+  const Mat<1, 2> h(1.0, 0.0);
+  const Mat<1, 1> r(1.0);
+  josephUpdate<2, 1>(x, p, innovate<2, 1>(p, Vec<1>(1.0), h, r), h, r);
+  EXPECT_NEAR(x(0), 2.0 / 3.0, 1e-12);
+  EXPECT_NEAR(x(1), 1.0 / 3.0, 1e-12);
+  EXPECT_NEAR(p(0, 0), 2.0 / 3.0, 1e-12);
+  EXPECT_NEAR(p(0, 1), 1.0 / 3.0, 1e-12);
+  EXPECT_NEAR(p(1, 1), 5.0 / 3.0, 1e-12);
+}
+
+TEST(Kalman, ConstantVelocityPredictByHand) {
+  // dt = 2, q = 0.3, no velocity decay: x = [1 2 0.5 -1] -> [2 0 0.5 -1];
+  // P = I -> F F^T + Q with F F^T = [[1+4 .. 2] ...] and Q = q [[8/3 2] [2 2]] per axis.
+  Vec<4> x(1.0, 2.0, 0.5, -1.0);
+  Mat<4, 4> p = Mat<4, 4>::Identity();
+  predictConstantVelocity(x, p, 2.0, 0.3, 0.0);
+  EXPECT_NEAR(x(0), 2.0, 1e-12);
+  EXPECT_NEAR(x(1), 0.0, 1e-12);
+  EXPECT_NEAR(p(0, 0), 5.0 + 0.3 * 8.0 / 3.0, 1e-12);
+  EXPECT_NEAR(p(0, 2), 2.0 + 0.3 * 2.0, 1e-12);
+  EXPECT_NEAR(p(2, 2), 1.0 + 0.3 * 2.0, 1e-12);
+  EXPECT_NEAR(p(0, 1), 0.0, 1e-12);
+}
+
+TEST(Kalman, StartFromAFixAndTheTagTrackPose) {
+  uwb::Fix fix;
+  fix.status = uwb::FixStatus::kOk;
+  fix.position = Eigen::Vector2d(3.0, 4.0);
+  fix.covariance << 0.04, 0.01, 0.01, 0.09;
+  Vec<4> x;
+  Mat<4, 4> p;
+  initialiseFromFix(fix, x, p, 1.0);
+  EXPECT_EQ(x, Vec<4>(3.0, 4.0, 0.0, 0.0));
+  EXPECT_NEAR(p(0, 1), 0.01, 1e-15);
+  EXPECT_NEAR(p(2, 2), 1.0, 1e-15);
+  EXPECT_NEAR(p(0, 2), 0.0, 1e-15);
+  // Tag 0.2 m ahead of the robot, heading +90 deg: the robot is 0.2 m "behind" in -y.
+  const auto est = tagTrackPose(7.0, fix.position, fix.covariance, {0.2, 0.0, 1.0}, M_PI / 2);
+  EXPECT_NEAR(est.pose.x(), 3.0, 1e-12);
+  EXPECT_NEAR(est.pose.y(), 3.8, 1e-12);
+  EXPECT_FALSE(est.heading_valid);
+  EXPECT_NEAR(est.covariance(2, 2), M_PI * M_PI, 1e-12);
+  EXPECT_NEAR(est.covariance(1, 1), 0.09, 1e-15);
+}
