@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "test_helpers.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
 
 using uwbloc::test::writeText;
 
@@ -106,4 +107,26 @@ TEST(Cli, CompareWritesTheRunDirectory) {
   for (const char* key : {"\"dataset\"", "\"duration_s\"", "\"rmse_2d_std\"", "\"realtime_factor\"",
                           "\"rejected\"", "\"coverage\""})
     EXPECT_NE(text.find(key), std::string::npos) << key;
+}
+
+TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {
+  // 300 ranges written with six significant digits: two distinct stamps.
+  const auto dir = uwbloc::test::scratchDir();
+  std::vector<uwbloc::loc::Event> events;
+  for (int k = 0; k < 300; ++k) {
+    uwbloc::uwb::Range r;
+    r.t = k < 150 ? 1.13486e9 : 1.13487e9;
+    r.anchor_id = 1 + k % 3;
+    r.range = 4.0;
+    events.emplace_back(r);
+  }
+  uwbloc::data::writeRawlog((dir / "c.rawlog").string(), events);
+  const auto manifest = manifestFor(dir, "c.rawlog");
+  const auto out = (dir / "run").string();
+  expectFailureMentioning(runCli("compare -d " + manifest + " -m uwb-ls -o " + out),
+                          {"c.rawlog", "collapsed", "2 distinct stamps for 300 messages",
+                           "--allow-bad-time"});
+  const auto allowed = runCli("compare -d " + manifest + " -m uwb-ls -o " + out + " --allow-bad-time");
+  EXPECT_EQ(allowed.code, 0) << allowed.output;
+  EXPECT_NE(allowed.output.find("WARNING"), std::string::npos) << allowed.output;
 }

@@ -21,6 +21,7 @@ struct RunOptions {
   std::vector<std::string> sets;
   uint64_t seed = 1;
   int repeat = 1;
+  bool allow_bad_time = false;  ///< score a recording whose timestamps have collapsed
 };
 
 /// `run` (one method) and `compare` (several): replay, score, write the run directory, print

@@ -41,6 +41,9 @@ int ImportCommand::run() {
   std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors, " << s.scans
             << " scans and " << s.ground_truth_rows << " reference poses\nManifest: "
             << s.manifest << "\n";
+  for (const auto& note : s.notes) std::cout << note << "\n";
+  for (const auto& [reason, count] : s.skipped)
+    std::cout << "Skipped " << count << " rows: " << reason << "\n";
   return kSuccess;
 }
 
@@ -84,6 +87,8 @@ void AugmentCommand::declare(CLI::App& parser) {
                   "map for NLOS: a map file, or 'scans' to map the recording's own scans at the "
                   "reference poses (default: no NLOS)");
   cmd->add_option("--seed", r.seed, "random seed")->capture_default_str();
+  cmd->add_flag("--allow-bad-time", r.allow_bad_time,
+                "augment a recording whose timestamps have collapsed instead of refusing it");
   cmd->add_option("--max-gap", r.max_gap,
                   "no ranges where reference poses are further apart than this [s]")
       ->capture_default_str();

@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
 #include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
@@ -100,6 +101,9 @@ void RunMethodsCommand::declare(CLI::App& parser) {
   cmd->add_option("--config", opt.config,
                   "INI file with one [method-name] section of parameters per method");
   cmd->add_option("--set", opt.sets, "override one parameter: method.key=value (repeatable)");
+  cmd->add_flag("--allow-bad-time", opt.allow_bad_time,
+                "score a recording whose timestamps have collapsed (far fewer distinct stamps "
+                "than messages) instead of refusing it");
   if (compare_) {
     methods_ = "all";
     cmd->add_option("--methods,-m", methods_,
@@ -122,6 +126,11 @@ int RunMethodsCommand::run() {
   const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);
   std::fprintf(stderr, "Loading %s\n", manifest.c_str());
   const data::Dataset ds = data::loadDataset(manifest, data_dir);
+  for (const auto& w : ds.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  if (ds.collapsed_time && !opt.allow_bad_time)
+    throw data::InputError(ds.manifest.rawlog +
+                           ": refusing to score a recording whose timestamps have collapsed "
+                           "(--allow-bad-time scores it anyway)");
   const bool all = compare_ && methods_ == "all";
   const auto methods = compare_ ? splitMethods(methods_) : std::vector<std::string>{methods_};
   std::vector<eval::MethodSummary> summaries;

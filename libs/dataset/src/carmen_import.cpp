@@ -3,8 +3,11 @@
 #include <mrpt/io/CFileGZInputStream.h>
 
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <sstream>
 
+#include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
@@ -53,28 +56,55 @@ loc::LaserScan flaserScan(size_t n, double t, Num& num) {
 struct CarmenLog {
   std::vector<loc::Event> events;    ///< scans and odometry increments, in time order
   std::vector<TimedPose> reference;  ///< the FLASER lines' corrected poses
+  std::map<std::string, long> skipped;  ///< lines left out, by reason
+};
+
+bool samePose(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return (a - b).cwiseAbs().maxCoeff() < 1e-6;
+}
+
+// The odometry of a "corrected" CARMEN log. Such logs repeat each FLASER line's corrected pose in
+// an ODOM line right after it, stamped 0 or with a garbage stamp; chaining those copies into the
+// odometry would teleport the robot onto the reference and back at every scan. The rule:
+//  - an ODOM line whose pose equals the corrected pose of the FLASER line before it is a copy;
+//  - an ODOM line with a non-finite or negative stamp, or one earlier than the last kept ODOM
+//    line's, is not a later reading;
+// both are dropped and counted. Without ODOM lines the FLASER lines' own odometry fields are used,
+// unless they too equal the corrected pose (then the log has no independent odometry).
+class CarmenOdometry {
+ public:
+  explicit CarmenOdometry(CarmenLog& log) : log_(log) {}
+  void flaser(const Eigen::Vector3d& corrected) { last_corrected_ = corrected; }
+  void odom(double t, const Eigen::Vector3d& pose) {
+    if (last_corrected_ && samePose(pose, *last_corrected_)) return skip("odom_corrected_pose_copy");
+    if (const char* problem = timestampProblem(t)) return skip(std::string("odom_") + problem);
+    if (last_ && t < last_t_) return skip("odom_out_of_order");
+    if (last_) {
+      loc::OdometryIncrement inc;
+      inc.t = t;
+      inc.delta = loc::relativePose(*last_, pose);
+      log_.events.emplace_back(inc);
+    }
+    last_ = pose;
+    last_t_ = t;
+  }
+
+ private:
+  void skip(const std::string& reason) { ++log_.skipped[reason]; }
+  CarmenLog& log_;
+  std::optional<Eigen::Vector3d> last_, last_corrected_;
+  double last_t_ = 0.0;
 };
 
 // The scans, odometry and corrected poses of a CARMEN log.
 CarmenLog parseCarmen(const std::string& log_path) {
   CarmenLog log;
-  auto& events = log.events;
-  auto& reference = log.reference;
   const std::string text = readAll(log_path);
   std::istringstream lines(text);
   std::string line;
   int number = 0;
-  std::optional<Eigen::Vector3d> last_odom;
-  bool has_odom_lines = text.find("\nODOM ") != std::string::npos;
-  auto addOdometry = [&](double t, const Eigen::Vector3d& pose) {
-    if (last_odom) {
-      loc::OdometryIncrement inc;
-      inc.t = t;
-      inc.delta = loc::relativePose(*last_odom, pose);
-      events.emplace_back(inc);
-    }
-    last_odom = pose;
-  };
+  const bool has_odom_lines = text.find("\nODOM ") != std::string::npos;
+  CarmenOdometry odometry(log);
   while (std::getline(lines, line)) {
     ++number;
     std::istringstream in(line);
@@ -89,24 +119,33 @@ CarmenLog parseCarmen(const std::string& log_path) {
     };
     if (kind == "ODOM") {
       // ODOM x y theta tv rv accel ipc_timestamp ipc_hostname logger_timestamp
-      addOdometry(num(6, "ipc_timestamp"), {num(0, "x"), num(1, "y"), num(2, "theta")});
+      odometry.odom(num(6, "ipc_timestamp"), {num(0, "x"), num(1, "y"), num(2, "theta")});
     } else if (kind == "FLASER") {
       // FLASER n r1..rn x y theta odom_x odom_y odom_theta ipc_timestamp ipc_hostname logger_ts
       const auto n = static_cast<size_t>(num(0, "num_readings"));
       if (f.size() < n + 10) throwInputError(log_path, number, "FLASER line too short");
       const double t = num(n + 7, "ipc_timestamp");
-      loc::LaserScan scan = flaserScan(n, t, num);
-      events.emplace_back(std::move(scan));
-      reference.push_back({t, {num(n + 1, "x"), num(n + 2, "y"), num(n + 3, "theta")}});
-      if (!has_odom_lines)
-        addOdometry(t, {num(n + 4, "odom_x"), num(n + 5, "odom_y"), num(n + 6, "odom_theta")});
+      const Eigen::Vector3d corrected(num(n + 1, "x"), num(n + 2, "y"), num(n + 3, "theta"));
+      const Eigen::Vector3d own(num(n + 4, "odom_x"), num(n + 5, "odom_y"), num(n + 6, "odom_theta"));
+      if (const char* problem = timestampProblem(t)) {
+        ++log.skipped[std::string("flaser_") + problem];
+        continue;
+      }
+      log.events.emplace_back(flaserScan(n, t, num));
+      log.reference.push_back({t, corrected});
+      if (!has_odom_lines) {
+        if (samePose(own, corrected))
+          ++log.skipped["flaser_odometry_is_the_corrected_pose"];
+        else
+          odometry.odom(t, own);
+      }
+      odometry.flaser(corrected);
     }
   }
-  if (reference.empty()) throwInputError(log_path, 0, "no FLASER lines");
-  loc::sortByTime(events);
-  std::stable_sort(reference.begin(), reference.end(),
+  if (log.reference.empty()) throwInputError(log_path, 0, "no FLASER lines");
+  loc::sortByTime(log.events);
+  std::stable_sort(log.reference.begin(), log.reference.end(),
                    [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
-
   return log;
 }
 
@@ -140,6 +179,8 @@ ImportSummary importCarmen(const std::string& log_path, const std::string& out_d
   summary.manifest = writeManifest(out_dir, m);
   for (const auto& e : events) summary.scans += std::holds_alternative<loc::LaserScan>(e);
   summary.ground_truth_rows = static_cast<long>(reference.size());
+  summary.skipped = log.skipped;
+  if (const auto w = collapsedTimeWarning(events)) summary.notes.push_back("WARNING: " + *w);
   return summary;
 }
 

@@ -1,5 +1,6 @@
 #include "uwbloc/dataset/dataset.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include <cmath>
@@ -81,9 +82,30 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
       throw InputError(manifest_path + ": [dataset] map: " + e.what());
     }
   }
+  if (auto w = collapsedTimeWarning(ds.events)) {
+    ds.collapsed_time = true;
+    ds.warnings.push_back(ds.manifest.rawlog + ": " + *w);
+  }
+  for (const auto& [reason, count] : ds.counts)
+    if (reason.rfind("rejected_", 0) == 0)
+      ds.warnings.push_back(ds.manifest.rawlog + ": " + std::to_string(count) +
+                            " messages rejected at reading (" + reason.substr(9) + ")");
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
   return ds;
+}
+
+std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events) {
+  if (events.size() < 50) return std::nullopt;
+  std::vector<double> t;
+  t.reserve(events.size());
+  for (const auto& e : events) t.push_back(loc::eventTime(e));
+  std::sort(t.begin(), t.end());
+  const auto distinct = static_cast<size_t>(std::unique(t.begin(), t.end()) - t.begin());
+  if (10 * distinct >= events.size()) return std::nullopt;
+  return "timestamps have collapsed: " + std::to_string(distinct) + " distinct stamps for " +
+         std::to_string(events.size()) +
+         " messages (written with too few digits?); results from it cannot be trusted";
 }
 
 std::string formatRangeFeatures(const std::vector<loc::Event>& events) {

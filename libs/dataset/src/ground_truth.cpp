@@ -47,6 +47,7 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
         throwInputError(path, line, "no ground-truth format given");
     }
     if (!p.pose.allFinite() || !std::isfinite(p.t)) throwInputError(path, line, "non-finite value");
+    if (p.t < 0.0) throwInputError(path, line, "negative time");
     if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
     out.push_back(p);
   });

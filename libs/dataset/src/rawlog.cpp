@@ -16,6 +16,7 @@
 
 #include "mrpt_scan.hpp"
 #include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/text_io.hpp"
 
 namespace uwbloc::data {
 
@@ -49,6 +50,10 @@ class Converter {
       t = fallback_t;
       ++rec_.counts["timestamp_from_frame"];
     }
+    if (const char* problem = timestampProblem(t)) {
+      ++rec_.counts[std::string("rejected_") + problem];
+      return;
+    }
     last_t_ = std::max(last_t_, t);
     if (const auto* b = dynamic_cast<const mrpt::obs::CObservationBeaconRanges*>(&obs)) {
       for (const auto& m : b->sensedData) {
@@ -75,6 +80,12 @@ class Converter {
       ++rec_.counts["imu_observations"];
     } else if (const auto* o = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs)) {
       const Eigen::Vector3d pose(o->odometry.x(), o->odometry.y(), o->odometry.phi());
+      if (last_odometry_ && t < last_odometry_t_) {
+        // An odometry reading stamped before the previous one is not a later pose.
+        ++rec_.counts["rejected_odometry_out_of_order"];
+        return;
+      }
+      last_odometry_t_ = t;
       if (last_odometry_) {
         loc::OdometryIncrement inc;
         inc.t = t;
@@ -113,6 +124,10 @@ class Converter {
     const auto move = acts.getBestMovementEstimation();
     if (!move) return;
     const auto mean = move->poseChange->getMeanVal();
+    if (const char* problem = timestampProblem(toSeconds(move->timestamp))) {
+      ++rec_.counts[std::string("rejected_") + problem];
+      return;
+    }
     loc::OdometryIncrement inc;
     inc.t = std::max(last_t_, toSeconds(move->timestamp));
     inc.delta << mean.x(), mean.y(), mean.phi();
@@ -135,6 +150,7 @@ class Converter {
   double last_t_ = 0.0;
   std::optional<loc::OdometryIncrement> pending_action_;
   std::optional<Eigen::Vector3d> last_odometry_;
+  double last_odometry_t_ = 0.0;
 };
 
 }  // namespace

@@ -293,6 +293,8 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
 
 std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir) {
   Recording rec = readRawlog(req.rawlog);
+  if (const auto w = collapsedTimeWarning(rec.events); w && !req.allow_bad_time)
+    throwInputError(req.rawlog, 0, *w + " (--allow-bad-time augments it anyway)");
   const bool tum =
       req.reference.size() > 4 && req.reference.substr(req.reference.size() - 4) == ".tum";
   const auto reference =

@@ -61,6 +61,15 @@ double parseNumber(const std::string& text, const std::string& file, int line,
   return v;
 }
 
+const char* timestampProblem(double t) {
+  if (!std::isfinite(t)) return "non_finite_time";
+  if (t < 0.0) return "negative_time";
+  // Beyond the year 3000 (a negative stamp stored as an unsigned MRPT timestamp reads back as
+  // about 1.8e12 s).
+  if (t > 3.3e10) return "absurd_time";
+  return nullptr;
+}
+
 void ensureDirectory(const std::string& path) {
   std::error_code ec;
   std::filesystem::create_directories(path, ec);

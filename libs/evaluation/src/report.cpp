@@ -226,6 +226,7 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                 dataset.name.c_str(), dataset.duration(), dataset.events.size(),
                 dataset.ground_truth.size());
   out << buf;
+  for (const auto& w : dataset.warnings) out << "WARNING: " << w << "\n";
   std::snprintf(buf, sizeof buf, "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %9s %8s %7s\n",
                 "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "mae",
                 "median", "p95", "max", "ms/step", "xRT", "reject");

@@ -3,7 +3,8 @@
 namespace uwbloc::loc {
 
 OdometryEstimator::OdometryEstimator(const OdometryParams& params, const EstimatorContext& context)
-    : pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())) {
+    : pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())),
+      start_t_(context.initial_pose ? context.initial_time : -1e300) {
   pose_.z() = wrapAngle(pose_.z() + params.heading_offset);
 }
 
@@ -12,6 +13,10 @@ std::optional<PoseEstimate> OdometryEstimator::doProcess(const Event& event) {
   if (!odo) return std::nullopt;
   if (!odo->delta.allFinite()) {
     countRejection("non_finite_odometry");
+    return std::nullopt;
+  }
+  if (odo->t <= start_t_) {
+    countRejection("odometry_before_start");
     return std::nullopt;
   }
   pose_ = composePose(pose_, odo->delta);

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -22,6 +23,10 @@ struct Dataset {
   std::shared_ptr<const loc::OccupancyMap> map;  ///< the manifest's map, when it names one
   std::map<std::string, long> counts;            ///< what the reader found
   std::vector<double> step_times;                ///< time of each rawlog step (see rawlog.hpp)
+  /// What makes a result from this recording untrustworthy (e.g. collapsed timestamps); the
+  /// report prints them, and compare refuses to score such a recording unless told otherwise.
+  std::vector<std::string> warnings;
+  bool collapsed_time = false;  ///< far fewer distinct timestamps than messages
   double start_time = 0.0;
   double end_time = 0.0;
   double duration() const { return end_time - start_time; }
@@ -32,6 +37,11 @@ struct Dataset {
 /// Loads the manifest, the rawlog, the ground truth and the optional range-feature side file.
 /// The manifest's [tag] keys, when present, override the tag pose recorded in the rawlog.
 Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir);
+
+/// When the stream's timestamps have collapsed (far fewer distinct stamps than messages, as when
+/// a log was written with too few significant digits), a one-line explanation; nothing otherwise.
+/// Rule: at least 50 messages and fewer distinct stamps than a tenth of them.
+std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events);
 
 /// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per
 /// range, in the rawlog's order. CObservationBeaconRanges has no field for the powers, so the

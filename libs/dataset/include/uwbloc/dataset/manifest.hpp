@@ -37,6 +37,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -115,6 +116,8 @@ struct ImportSummary {
   long anchors = 0;
   long scans = 0;
   long ground_truth_rows = 0;
+  std::map<std::string, long> skipped;  ///< rows left out, by reason (bad stamps, copies, ...)
+  std::vector<std::string> notes;       ///< what the importer decided from the data
 };
 
 GroundTruthFormat parseGroundTruthFormat(const std::string& text);

@@ -16,6 +16,11 @@ void forEachRow(const std::string& path,
 double parseNumber(const std::string& text, const std::string& file, int line,
                    const std::string& field);
 
+/// Why a timestamp cannot be used: "non_finite_time", "negative_time" or "absurd_time" (after the
+/// year 3000); nullptr when it can.
+/// Every reader rejects and counts such rows instead of sorting them to the start of the stream.
+const char* timestampProblem(double t);
+
 /// Creates a folder (and its parents), or throws InputError naming it.
 void ensureDirectory(const std::string& path);
 

@@ -1,4 +1,6 @@
-// odom: dead reckoning from odometry increments, started at the first ground-truth pose.
+// odom: dead reckoning from odometry increments, started at the first ground-truth pose and at
+// its time: increments stamped at or before it (the motion that brought the robot to that pose)
+// are skipped and counted as odometry_before_start.
 #pragma once
 
 #include "uwbloc/localization/estimator.hpp"
@@ -23,6 +25,7 @@ class OdometryEstimator : public Estimator {
 
  private:
   Eigen::Vector3d pose_;
+  double start_t_;
 };
 
 }  // namespace uwbloc::loc

@@ -1,0 +1,171 @@
+// Importers and readers on constructed files: CARMEN's corrected-pose copies and bad stamps,
+// Plaza's odometry direction found from the data, timestamps that cannot be used, collapsed
+// timestamps, and dead reckoning that starts at the reference's first time.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <sstream>
+
+#include "test_helpers.hpp"
+#include "uwbloc/dataset/carmen_import.hpp"
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/plaza_import.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/localization/registry.hpp"
+
+using namespace uwbloc;
+
+namespace {
+
+// A FLASER line of 3 rays at time t with the corrected pose `c` (odometry fields = c, as the
+// corrected logs write them).
+std::string flaser(double t, const Eigen::Vector3d& c) {
+  std::ostringstream s;
+  s << "FLASER 3 1.0 2.0 3.0 " << c.x() << " " << c.y() << " " << c.z() << " " << c.x() << " "
+    << c.y() << " " << c.z() << " " << t << " host " << t << "\n";
+  return s.str();
+}
+std::string odom(double t, const Eigen::Vector3d& p) {
+  std::ostringstream s;
+  s << "ODOM " << p.x() << " " << p.y() << " " << p.z() << " 0 0 0 " << t << " host " << t << "\n";
+  return s.str();
+}
+
+}  // namespace
+
+TEST(Carmen, CorrectedPoseCopiesAndBadStampsAreDroppedAndCounted) {
+  // The raw odometry drives along x at 1 m/s; the corrected poses sit 0.5 m to the side. After
+  // each FLASER line, an ODOM copy of its corrected pose, stamped 0, 0.71 or -20.1.
+  std::string log;
+  const char* copy_stamps[] = {"0", "0.71", "-20.1", "4.6e-72"};
+  for (int k = 0; k < 8; ++k) {
+    const double t = 1.0 + k;
+    log += odom(t - 0.5, {t - 0.5, 0.0, 0.0});
+    log += odom(t, {t, 0.0, 0.0});
+    const Eigen::Vector3d corrected(t, 0.5, 0.0);
+    log += flaser(t, corrected);
+    std::ostringstream copy;
+    copy << "ODOM " << corrected.x() << " " << corrected.y() << " 0 0 0 0 " << copy_stamps[k % 4]
+         << " host 0\n";
+    log += copy.str();
+  }
+  log += odom(-3.0, {20.0, 0.0, 0.0});  // a negative stamp
+  log += odom(4.0, {30.0, 0.0, 0.0});   // earlier than the last kept reading
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "x.log", log);
+  const auto s = data::importCarmen((dir / "x.log").string(), (dir / "out").string());
+  EXPECT_EQ(s.scans, 8);
+  EXPECT_EQ(s.skipped.at("odom_corrected_pose_copy"), 8);
+  EXPECT_EQ(s.skipped.at("odom_negative_time"), 1);
+  EXPECT_EQ(s.skipped.at("odom_out_of_order"), 1);
+  // What is left is the raw odometry: 15 increments of 0.5 m along x, in time order.
+  const auto rec = data::readRawlog((dir / "out" / "carmen.rawlog").string());
+  double x = 0.0, last_t = -1.0;
+  int increments = 0;
+  for (const auto& e : rec.events)
+    if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) {
+      EXPECT_NEAR(o->delta.x(), 0.5, 1e-6);
+      EXPECT_NEAR(o->delta.y(), 0.0, 1e-6);
+      EXPECT_GE(o->t, last_t);
+      last_t = o->t;
+      x += o->delta.x();
+      ++increments;
+    }
+  EXPECT_EQ(increments, 15);
+  EXPECT_NEAR(x, 7.5, 1e-6);
+}
+
+TEST(Rawlog, NegativeAndOutOfOrderStampsAreRejectedAndCounted) {
+  std::vector<loc::Event> events;
+  for (int k = 0; k < 5; ++k) {
+    uwb::Range r;
+    r.t = 10.0 + k;
+    r.anchor_id = 1;
+    r.range = 3.0;
+    events.emplace_back(r);
+  }
+  uwb::Range bad;
+  bad.t = -20.1;
+  bad.anchor_id = 1;
+  bad.range = 3.0;
+  events.emplace_back(bad);
+  const auto dir = test::scratchDir();
+  data::writeRawlog((dir / "r.rawlog").string(), events);
+  const auto rec = data::readRawlog((dir / "r.rawlog").string());
+  EXPECT_EQ(rec.events.size(), 5u);
+  // MRPT stores the stamp unsigned: -20.1 s reads back as about 1.8e12 s.
+  EXPECT_EQ(rec.counts.at("rejected_absurd_time"), 1);
+  for (const auto& e : rec.events) EXPECT_GE(loc::eventTime(e), 0.0);
+}
+
+TEST(Dataset, CollapsedTimestampsAreFlagged) {
+  std::vector<loc::Event> events;
+  for (int k = 0; k < 200; ++k) {
+    uwb::Range r;
+    r.t = k < 100 ? 1.13486e9 : 1.13487e9;  // six significant digits: two distinct stamps
+    r.anchor_id = 1 + k % 3;
+    r.range = 3.0;
+    events.emplace_back(r);
+  }
+  const auto w = data::collapsedTimeWarning(events);
+  ASSERT_TRUE(w.has_value());
+  EXPECT_NE(w->find("2 distinct stamps for 200 messages"), std::string::npos) << *w;
+  for (size_t k = 0; k < events.size(); ++k) std::get<uwb::Range>(events[k]).t = 0.1 * k;
+  EXPECT_FALSE(data::collapsedTimeWarning(events).has_value());
+}
+
+// A Plaza-layout folder whose odometry runs forward (sign +1) or backward (-1) against the
+// reference's heading: the importer finds which, and dead reckoning then follows the reference.
+class PlazaDirection : public ::testing::TestWithParam<double> {};
+
+TEST_P(PlazaDirection, IsFoundFromTheData) {
+  const double sign = GetParam();
+  const auto dir = test::scratchDir();
+  std::ostringstream dr, td, gt;
+  // A loop: 0.5 m per 0.5 s, turning 0.02 rad per step.
+  Eigen::Vector3d pose(2.0, 1.0, 0.3);
+  gt << "0 " << pose.x() << " " << pose.y() << " " << pose.z() << "\n";
+  for (int k = 1; k <= 400; ++k) {
+    const double t = 0.5 * k, d = 0.5, dh = 0.02;
+    pose = loc::composePose(pose, {d * std::cos(dh / 2), d * std::sin(dh / 2), dh});
+    dr << t << " " << sign * d << " " << dh << "\n";
+    gt << t << " " << pose.x() << " " << pose.y() << " " << pose.z() << "\n";
+    td << t << " 0 " << 1 + k % 4 << " 10.0\n";
+  }
+  test::writeText(dir / "P_DR.txt", dr.str());
+  test::writeText(dir / "P_TD.txt", td.str());
+  test::writeText(dir / "P_GT.txt", gt.str());
+  test::writeText(dir / "P_TL.txt", "1 0 0\n2 50 0\n3 50 50\n4 0 50\n");
+  const auto s = data::importPlaza(dir.string(), (dir / "out").string());
+  ASSERT_FALSE(s.notes.empty());
+  EXPECT_NE(s.notes[0].find(sign > 0 ? "forward" : "backward"), std::string::npos) << s.notes[0];
+  const auto ds = data::loadDataset(s.manifest, "");
+  const auto run = eval::evaluateMethod(ds, "odom", 1, 1);
+  EXPECT_LT(run.metrics.rmse_2d, 1e-3);
+}
+
+INSTANTIATE_TEST_SUITE_P(Both, PlazaDirection, ::testing::Values(1.0, -1.0));
+
+TEST(Odometry, DeadReckoningStartsAtTheFirstReferenceTime) {
+  // Increments at or before the start pose's time brought the robot there: they are skipped.
+  loc::EstimatorContext ctx;
+  ctx.anchors = {{1, {0, 0, 0}}};
+  ctx.initial_pose = Eigen::Vector3d(1.0, 2.0, 0.0);
+  ctx.initial_time = 5.0;
+  auto odom = loc::Registry::builtin().create("odom", ctx);
+  for (double t : {4.0, 5.0, 6.0}) {
+    loc::OdometryIncrement o;
+    o.t = t;
+    o.delta << 1.0, 0.0, 0.0;
+    odom->process(o);
+  }
+  const auto poses = odom->finishAll();
+  EXPECT_EQ(odom->statistics().rejected.at("odometry_before_start"), 2);
+  loc::OdometryIncrement o;
+  o.t = 7.0;
+  o.delta << 1.0, 0.0, 0.0;
+  const auto last = odom->process(o);
+  ASSERT_TRUE(last.has_value());
+  EXPECT_NEAR(last->pose.x(), 3.0, 1e-12);  // 1 + the increments at 6 and 7
+}
