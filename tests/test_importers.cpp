@@ -9,6 +9,7 @@
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/evaluation/runner.hpp"
@@ -168,4 +169,27 @@ TEST(Odometry, DeadReckoningStartsAtTheFirstReferenceTime) {
   const auto last = odom->process(o);
   ASSERT_TRUE(last.has_value());
   EXPECT_NEAR(last->pose.x(), 3.0, 1e-12);  // 1 + the increments at 6 and 7
+}
+
+TEST(Hanyang, RowsWithUnusableStampsOrPosesAreSkippedAndCounted) {
+  const auto dir = test::scratchDir();
+  const std::string header =
+      "%time,field.stamp,field.id,field.x,field.y,field.z,field.distanceFromTag,field.rssi,"
+      "field.rssi_fp\n";
+  for (int id : {3, 5, 9}) {
+    std::string rows = header;
+    for (int k = 0; k < 5; ++k) {
+      const std::string stamp = (id == 3 && k == 2) ? "nan" : std::to_string(1000000000LL * (k + 1));
+      rows += "0," + stamp + "," + std::to_string(id) + "," + std::to_string(id) + ",0,2,5.0,-80,-82\n";
+    }
+    test::writeText(dir / ("A" + std::to_string(id) + ".csv"), rows);
+  }
+  test::writeText(dir / "trajectory.csv",
+                  "timestamp,x,y,z,heading_degrees\n1000000000,0,0,0,0\n2000000000,nan,0,0,0\n"
+                  "3000000000,1,0,0,0\n");
+  const auto s = data::importHanyang(dir.string(), (dir / "out").string());
+  EXPECT_EQ(s.ranges, 14);
+  EXPECT_EQ(s.skipped.at("range_non_finite_time"), 1);
+  EXPECT_EQ(s.skipped.at("reference_non_finite_pose"), 1);
+  EXPECT_EQ(s.ground_truth_rows, 2);
 }

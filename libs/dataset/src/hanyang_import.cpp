@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 #include "uwbloc/dataset/dataset.hpp"
@@ -69,7 +70,7 @@ std::vector<std::string> anchorFiles(const std::string& run_dir) {
 // One anchor's file: its ranges (with received and first-path power) into `events`; returns the
 // anchor, whose id and position every row repeats.
 uwb::Anchor readAnchorFile(const std::string& file, const HanyangImportParams& params,
-                           std::vector<loc::Event>& events) {
+                           std::vector<loc::Event>& events, std::map<std::string, long>& skipped) {
   uwb::Anchor anchor;
   bool have_anchor = false;
   forEachRow(file, [&](int line, const std::vector<std::string>& f) {
@@ -88,6 +89,7 @@ uwb::Anchor readAnchorFile(const std::string& file, const HanyangImportParams& p
     }
     uwb::Range r;
     r.t = parseNumber(f[1], file, line, "field.stamp") * 1e-9;
+    if (const char* problem = timestampProblem(r.t)) return void(++skipped[std::string("range_") + problem]);
     r.anchor_id = id;
     r.range = parseNumber(f[6], file, line, "field.distanceFromTag");
     r.tag_on_robot << 0.0, 0.0, params.tag_height;
@@ -100,7 +102,8 @@ uwb::Anchor readAnchorFile(const std::string& file, const HanyangImportParams& p
 }
 
 // trajectory.csv: timestamp [ns], x, y, z, heading [deg].
-std::vector<TimedPose> readReference(const std::string& trajectory) {
+std::vector<TimedPose> readReference(const std::string& trajectory,
+                                     std::map<std::string, long>& skipped) {
   std::vector<TimedPose> gt;
   forEachRow(trajectory, [&](int line, const std::vector<std::string>& f) {
     if (!f.empty() && f[0] == "timestamp") return;
@@ -110,6 +113,9 @@ std::vector<TimedPose> readReference(const std::string& trajectory) {
     p.t = parseNumber(f[0], trajectory, line, "timestamp") * 1e-9;
     p.pose << parseNumber(f[1], trajectory, line, "x"), parseNumber(f[2], trajectory, line, "y"),
         loc::wrapAngle(parseNumber(f[4], trajectory, line, "heading_degrees") * M_PI / 180.0);
+    if (const char* problem = timestampProblem(p.t))
+      return void(++skipped[std::string("reference_") + problem]);
+    if (!p.pose.allFinite()) return void(++skipped["reference_non_finite_pose"]);
     if (!gt.empty() && p.t < gt.back().t) throwInputError(trajectory, line, "time goes backwards");
     gt.push_back(p);
   });
@@ -121,16 +127,17 @@ std::vector<TimedPose> readReference(const std::string& trajectory) {
 
 ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
                             const HanyangImportParams& params) {
+  ImportSummary summary;
   std::vector<uwb::Anchor> anchors;
   std::vector<loc::Event> events;
   for (const auto& file : anchorFiles(run_dir)) {
-    const uwb::Anchor anchor = readAnchorFile(file, params, events);
+    const uwb::Anchor anchor = readAnchorFile(file, params, events, summary.skipped);
     if (uwb::findAnchor(anchors, anchor.id))
       throwInputError(file, 0, "anchor id " + std::to_string(anchor.id) + " appears twice");
     anchors.push_back(anchor);
   }
   loc::sortByTime(events);
-  const auto gt = readReference((fs::path(run_dir) / "trajectory.csv").string());
+  const auto gt = readReference((fs::path(run_dir) / "trajectory.csv").string(), summary.skipped);
 
   ensureDirectory(out_dir);
   const fs::path out(out_dir);
@@ -148,7 +155,6 @@ ImportSummary importHanyang(const std::string& run_dir, const std::string& out_d
   m.range_features = "range_features.csv";
   m.anchors_csv = "anchors.csv";
   m.tag_height = params.tag_height;
-  ImportSummary summary;
   summary.manifest = writeManifest(out_dir, m);
   summary.ranges = static_cast<long>(events.size());
   summary.anchors = static_cast<long>(anchors.size());
