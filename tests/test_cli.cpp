@@ -130,3 +130,25 @@ TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {
   EXPECT_EQ(allowed.code, 0) << allowed.output;
   EXPECT_NE(allowed.output.find("WARNING"), std::string::npos) << allowed.output;
 }
+
+TEST(Cli, AMethodWithoutAnEstimateIsFlaggedAndStrictExitsThree) {
+  // Ranges from one anchor only: no epoch can be solved.
+  const auto dir = uwbloc::test::scratchDir();
+  std::vector<uwbloc::loc::Event> events;
+  for (int k = 0; k < 100; ++k) {
+    uwbloc::uwb::Range r;
+    r.t = 0.1 * k;
+    r.anchor_id = 1;
+    r.range = 4.0;
+    events.emplace_back(r);
+  }
+  uwbloc::data::writeRawlog((dir / "one.rawlog").string(), events);
+  const auto manifest = manifestFor(dir, "one.rawlog");
+  const auto out = (dir / "run").string();
+  const auto lenient = runCli("compare -d " + manifest + " -m uwb-ls -o " + out);
+  EXPECT_EQ(lenient.code, 0) << lenient.output;
+  EXPECT_NE(lenient.output.find("FLAGGED: uwb-ls produced no estimate"), std::string::npos)
+      << lenient.output;
+  const auto strict = runCli("compare -d " + manifest + " -m uwb-ls --strict -o " + out);
+  EXPECT_EQ(strict.code, 3) << strict.output;
+}

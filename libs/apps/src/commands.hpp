@@ -22,6 +22,7 @@ struct RunOptions {
   uint64_t seed = 1;
   int repeat = 1;
   bool allow_bad_time = false;  ///< score a recording whose timestamps have collapsed
+  bool strict = false;          ///< exit 3 when a method is flagged (no estimate, low coverage)
 };
 
 /// `run` (one method) and `compare` (several): replay, score, write the run directory, print

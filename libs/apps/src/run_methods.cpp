@@ -101,6 +101,9 @@ void RunMethodsCommand::declare(CLI::App& parser) {
   cmd->add_option("--config", opt.config,
                   "INI file with one [method-name] section of parameters per method");
   cmd->add_option("--set", opt.sets, "override one parameter: method.key=value (repeatable)");
+  cmd->add_flag("--strict", opt.strict,
+                "exit with code 3 when a method produced no estimate or covers under half of the "
+                "ground truth");
   cmd->add_flag("--allow-bad-time", opt.allow_bad_time,
                 "score a recording whose timestamps have collapsed (far fewer distinct stamps "
                 "than messages) instead of refusing it");
@@ -143,6 +146,9 @@ int RunMethodsCommand::run() {
   eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
   std::cout << eval::formatTable(ds, summaries, bounds);
   std::cout << "Run directory: " << out << "\n";
+  if (opt.strict)
+    for (const auto& s : summaries)
+      if (!eval::resultFlag(ds, s).empty()) return kNoResult;
   return kSuccess;
 }
 

@@ -76,6 +76,8 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["runs"] = m.runs;
     e["steps"] = m.metrics.steps;
     e["coverage"] = number(m.metrics.coverage);
+    const std::string flag = resultFlag(dataset, m);
+    e["flag"] = flag.empty() ? nlohmann::json(nullptr) : nlohmann::json(flag);
     e["rmse_x"] = number(m.metrics.rmse_x);
     e["rmse_y"] = number(m.metrics.rmse_y);
     e["rmse_2d"] = number(m.metrics.rmse_2d);
@@ -232,6 +234,14 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                 "median", "p95", "max", "ms/step", "xRT", "reject");
   out << buf;
   tableRows(out, methods);
+  for (const auto& m : methods) {
+    const std::string flag = resultFlag(dataset, m);
+    if (flag == "no_estimate")
+      out << "FLAGGED: " << m.spec << " produced no estimate that can be scored\n";
+    else if (flag == "low_coverage")
+      out << "FLAGGED: " << m.spec << " covers only " << std::lround(100 * m.metrics.coverage)
+          << " % of the ground truth (under 50 %)\n";
+  }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
          "samples with an estimate within 1 s; xRT = real-time factor.\n";
   boundsAndNlosLines(out, dataset, methods, bounds);

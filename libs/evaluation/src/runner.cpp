@@ -140,4 +140,11 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
   return s;
 }
 
+std::string resultFlag(const data::Dataset& dataset, const MethodSummary& m) {
+  if (dataset.ground_truth.empty()) return m.trajectory.empty() ? "no_estimate" : "";
+  if (m.trajectory.empty() || m.metrics.associated == 0) return "no_estimate";
+  if (!(m.metrics.coverage >= 0.5)) return "low_coverage";
+  return "";
+}
+
 }  // namespace uwbloc::eval

@@ -1,8 +1,40 @@
 #include "uwbloc/localization/params.hpp"
 
+#include <ostream>
+
+#include <istream>
+
+#include <cstdlib>
+
+#include <cmath>
+
 #include <algorithm>
 
 namespace uwbloc::loc {
+
+std::istream& operator>>(std::istream& in, AutoDouble& v) {
+  std::string token;
+  if (!(in >> token)) return in;
+  if (token == "auto") {
+    v.value.reset();
+    return in;
+  }
+  char* end = nullptr;
+  const double x = std::strtod(token.c_str(), &end);
+  if (end != token.c_str() + token.size() || !std::isfinite(x))
+    in.setstate(std::ios::failbit);
+  else
+    v.value = x;
+  return in;
+}
+
+std::ostream& operator<<(std::ostream& out, const AutoDouble& v) {
+  if (v.value)
+    out << *v.value;
+  else
+    out << "auto";
+  return out;
+}
 
 ParamSet ParamSet::parse(const std::string& text, const std::string& context) {
   ParamSet set;

@@ -69,10 +69,29 @@ uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::Plan
   return uwb::solveLinearLS(ranges);
 }
 
+double EpochBuffer::window() const {
+  if (window_.value) return *window_.value;
+  const size_t n = std::min(gaps_seen_, gaps_.size());
+  if (n == 0 || anchors_seen_.size() < 2) return kMinEpochWindow;
+  std::array<double, 64> g = gaps_;
+  std::nth_element(g.begin(), g.begin() + static_cast<long>(n / 2), g.begin() + static_cast<long>(n));
+  const double round = 1.2 * static_cast<double>(anchors_seen_.size() - 1) * g[n / 2];
+  return std::max(kMinEpochWindow, round);
+}
+
 std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& r) {
+  const double t = r.measurement.t;
+  if (gaps_seen_ > 0 || !anchors_seen_.empty()) {
+    gaps_[gaps_seen_ % gaps_.size()] = std::max(0.0, t - last_t_);
+    ++gaps_seen_;
+  }
+  last_t_ = t;
+  if (std::find(anchors_seen_.begin(), anchors_seen_.end(), r.measurement.anchor_id) ==
+      anchors_seen_.end())
+    anchors_seen_.push_back(r.measurement.anchor_id);
   std::optional<std::vector<AcceptedRange>> closed;
   if (!open_.empty()) {
-    const bool too_late = r.measurement.t - open_.front().measurement.t > window_;
+    const bool too_late = r.measurement.t - open_.front().measurement.t > window();
     const bool repeated = std::any_of(open_.begin(), open_.end(), [&](const AcceptedRange& o) {
       return o.measurement.anchor_id == r.measurement.anchor_id;
     });

@@ -58,6 +58,11 @@ struct MethodSummary {
   std::vector<std::pair<std::string, std::string>> artifacts;  ///< of the first run
 };
 
+/// Why a method's result cannot stand as a result: "no_estimate" (nothing produced, or nothing
+/// that overlaps the ground truth) or "low_coverage" (under half of the ground-truth samples
+/// have an estimate within 1 s); empty when it is fine or there is no ground truth to judge by.
+std::string resultFlag(const data::Dataset& dataset, const MethodSummary& m);
+
 /// Runs `spec` `repeat` times with seeds seed, seed+1, ... and summarises.
 MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& spec, int repeat,
                              uint64_t seed, const loc::ParamSet& extra = {},

@@ -3,7 +3,9 @@
 // in a visit() member, and that one list serves loading, printing and `uwbloc methods`.
 #pragma once
 
+#include <iosfwd>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <type_traits>
 #include <stdexcept>
@@ -51,6 +53,15 @@ std::string enumChoices() {
     out += std::string(i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i].name;
   return out;
 }
+
+/// A number that may be left to the data: "auto" (estimated from the recording while it runs)
+/// or a value.
+struct AutoDouble {
+  std::optional<double> value;  ///< empty: auto
+  bool isAuto() const { return !value.has_value(); }
+};
+std::istream& operator>>(std::istream& in, AutoDouble& v);
+std::ostream& operator<<(std::ostream& out, const AutoDouble& v);
 
 class ParamSet {
  public:

@@ -68,17 +68,30 @@ class UwbEstimator : public Estimator {
 
 /// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds
 /// after its first range, or a second range from an anchor already in it.
+///
+/// window = auto takes the span from the data's own rate: one round of ranges, from every anchor
+/// seen, 1.2 (n_anchors - 1) times the median gap between consecutive ranges (over the last 64),
+/// and never below kMinEpochWindow. Ranges that arrive together (one stamp per round, the MRPT
+/// demo) give a zero gap and the shortest window; ranges that arrive one anchor at a time (CMU
+/// Plaza, about 4 per second) give a window of about one second.
 class EpochBuffer {
  public:
-  explicit EpochBuffer(double window) : window_(window) {}
+  static constexpr double kMinEpochWindow = 0.15;  ///< [s]
+  explicit EpochBuffer(AutoDouble window) : window_(window) {}
   /// Adds a range; returns the epoch it closed, if any.
   std::optional<std::vector<AcceptedRange>> add(const AcceptedRange& r);
   /// Returns the open epoch, if any, and empties the buffer.
   std::optional<std::vector<AcceptedRange>> flush();
+  /// The span in force [s].
+  double window() const;
 
  private:
-  double window_;
+  AutoDouble window_;
   std::vector<AcceptedRange> open_;
+  std::array<double, 64> gaps_{};  ///< the last gaps between consecutive ranges [s]
+  size_t gaps_seen_ = 0;
+  double last_t_ = 0.0;
+  std::vector<int> anchors_seen_;
 };
 
 /// Base of the per-epoch UWB methods: accepted ranges are grouped into epochs and each closed
@@ -86,7 +99,7 @@ class EpochBuffer {
 class EpochUwbEstimator : public UwbEstimator {
  protected:
   EpochUwbEstimator(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
-                    double window)
+                    AutoDouble window)
       : UwbEstimator(params, std::move(anchors)), epochs_(window) {}
   std::optional<PoseEstimate> doProcess(const Event& event) final;
   std::optional<PoseEstimate> doFinish() final;

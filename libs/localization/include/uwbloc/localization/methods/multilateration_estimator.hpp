@@ -11,12 +11,12 @@ namespace uwbloc::loc {
 
 struct MultilaterationParams {
   RangeFrontEndParams front;   ///< range checks and gates
-  double epoch_window = 0.15;  ///< ranges within this span form one epoch [s]
+  AutoDouble epoch_window;  ///< ranges within this span form one epoch [s]; auto: the data's rate
 
   template <class V>
   void visit(V&& v) {
     front.visit(v);
-    v("window", epoch_window, "epoch window [s]");
+    v("window", epoch_window, "epoch window [s], or auto (one round of ranges from the data's rate)");
   }
 };
 

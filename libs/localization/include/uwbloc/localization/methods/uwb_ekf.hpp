@@ -22,7 +22,7 @@ namespace uwbloc::loc {
 
 struct UwbEkfParams {
   RangeFrontEndParams front;
-  double epoch_window = 0.15;  ///< epoch window for the initial multilateration fix [s]
+  AutoDouble epoch_window;  ///< epoch window of the initial fix [s]; auto: the data's rate
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 9.0;           ///< chi-square gate on one range innovation (3 sigma, 1 dof)
@@ -34,7 +34,7 @@ struct UwbEkfParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
-    v("window", epoch_window, "epoch window of the initial fix [s]");
+    v("window", epoch_window, "epoch window of the initial fix [s], or auto");
     v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
     v("gate", gate, "chi-square gate on each range innovation (1 dof)");

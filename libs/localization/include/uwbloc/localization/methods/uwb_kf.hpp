@@ -17,7 +17,7 @@ namespace uwbloc::loc {
 
 struct UwbKfParams {
   RangeFrontEndParams front;
-  double epoch_window = 0.15;  ///< ranges within this span form one epoch [s]
+  AutoDouble epoch_window;  ///< ranges within this span form one epoch [s]; auto: the data's rate
   /// Multilateration for the measurement: ls (the greenhouse paper), gn or chan.
   MultilaterationSolver solver = MultilaterationSolver::kGaussNewton;
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
@@ -29,7 +29,7 @@ struct UwbKfParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
-    v("window", epoch_window, "epoch window [s]");
+    v("window", epoch_window, "epoch window [s], or auto (one round of ranges from the data's rate)");
     v("solver", solver, "multilateration solver for the measurement: ls, gn, chan");
     v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
