@@ -47,11 +47,7 @@ std::optional<PoseEstimate> GraphSmoother::solveWindow() {
     const int v = g.addPose(w.pose);
     g.addPosePrior(v, w.front.pose, priorSigma(w.front));
     if (i > 0) {
-      const Eigen::Vector3d& d = w.odometry_before;
-      const double sxy = params_.odom_sigma_xy + params_.odom_sigma_xy_per_m * d.head<2>().norm();
-      const double sth =
-          params_.odom_sigma_theta + params_.odom_sigma_theta_per_rad * std::abs(d.z());
-      g.addOdometry(v - 1, v, d, Eigen::Vector3d(sxy, sxy, sth));
+      g.addOdometry(v - 1, v, w.odometry_before, odometrySigma(w.odometry_before));
     }
     for (const auto& r : w.ranges)
       g.addRange(v, r.measurement.anchor_id, r.measurement.range, r.measurement.tag_on_robot);
