@@ -82,6 +82,13 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["rmse_y"] = number(m.metrics.rmse_y);
     e["rmse_2d"] = number(m.metrics.rmse_2d);
     e["rmse_2d_std"] = number(m.rmse_2d_std);
+    e["rmse_2d_worst"] = number(m.worstRmse());
+    e["seed_runs"] = nlohmann::json::array();
+    for (const auto& r : m.seed_runs)
+      e["seed_runs"].push_back({{"seed", r.seed},
+                                {"rmse_2d", number(r.rmse_2d)},
+                                {"coverage", number(r.coverage)},
+                                {"max_2d", number(r.max_2d)}});
     e["mae_2d"] = number(m.metrics.mae_2d);
     e["median_2d"] = number(m.metrics.median_2d);
     e["p95_2d"] = number(m.metrics.p95_2d);
@@ -153,6 +160,7 @@ void tableRows(std::ostringstream& out, const std::vector<MethodSummary>& method
         << " " << std::setw(6) << m.metrics.steps << " " << num(m.metrics.coverage, 5, 2) << " "
         << num(m.metrics.rmse_x, 7, 3) << " " << num(m.metrics.rmse_y, 7, 3) << " "
         << num(m.metrics.rmse_2d, 7, 3) << " " << num(m.rmse_2d_std, 6, 3) << " "
+        << num(m.worstRmse(), 7, 3) << " "
         << num(m.metrics.mae_2d, 7, 3) << " " << num(m.metrics.median_2d, 7, 3) << " "
         << num(m.metrics.p95_2d, 7, 3) << " " << num(m.metrics.max_2d, 7, 3) << " "
         << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " " << std::setw(7)
@@ -229,8 +237,9 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
                 dataset.ground_truth.size());
   out << buf;
   for (const auto& w : dataset.warnings) out << "WARNING: " << w << "\n";
-  std::snprintf(buf, sizeof buf, "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %9s %8s %7s\n",
-                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "mae",
+  std::snprintf(buf, sizeof buf,
+                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %9s %8s %7s\n", "method",
+                "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst", "mae",
                 "median", "p95", "max", "ms/step", "xRT", "reject");
   out << buf;
   tableRows(out, methods);
@@ -243,7 +252,8 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
           << " % of the ground truth (under 50 %)\n";
   }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
-         "samples with an estimate within 1 s; xRT = real-time factor.\n";
+         "samples with an estimate within 1 s; worst = the worst seed's rmse_2d; xRT = "
+         "real-time factor.\n";
   boundsAndNlosLines(out, dataset, methods, bounds);
   rejectionLines(out, methods);
   return out.str();

@@ -39,12 +39,21 @@ std::string missingNeeds(const data::Dataset& dataset, const std::string& spec);
 RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
                     const loc::ParamSet& extra = {}, const ProgressFn& progress = nullptr);
 
+/// One seed's figures of a repeated run.
+struct SeedRun {
+  uint64_t seed = 0;
+  double rmse_2d = 0.0, coverage = 0.0, max_2d = 0.0;
+};
+
 struct MethodSummary {
   std::string spec;
   std::string name;
   int runs = 0;
   Metrics metrics;           ///< of the first run (trajectory, CDF), with rmse averaged over runs
   double rmse_2d_std = 0.0;  ///< std of the 2D RMSE over runs
+  std::vector<SeedRun> seed_runs;  ///< every run's figures, in seed order
+  /// The worst seed's 2D RMSE (NaN when a seed scored nothing).
+  double worstRmse() const;
   double ms_per_step = 0.0;
   double realtime_factor = 0.0;  ///< dataset duration / processing time
   std::map<std::string, long> rejected;
