@@ -87,6 +87,17 @@ class BenchOptimizersCommand : public Command {
   std::string functions_ = "f1_sphere,f2_schwefel_2.22,f3_step,f4_rastrigin,f5_griewank";
 };
 
+/// `benchmark`: every dataset, every applicable method, defaults only, several seeds.
+class BenchmarkCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::string data_dir_, out_ = "runs/benchmark", methods_, datasets_;
+  int seeds_ = 5;
+};
+
 /// `methods`: every registered method with its parameters, defaults and meaning.
 class MethodsCommand : public Command {
  public:

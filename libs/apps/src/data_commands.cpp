@@ -1,12 +1,16 @@
 // `uwbloc import`, `simulate` and `augment`: the commands that write datasets.
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <iostream>
+#include <sstream>
 
 #include "commands.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
 #include "uwbloc/dataset/scenario.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/evaluation/benchmark.hpp"
 
 namespace uwbloc::apps {
 
@@ -97,6 +101,52 @@ void AugmentCommand::declare(CLI::App& parser) {
 int AugmentCommand::run() {
   std::cout << "Manifest: " << data::writeAugmented(request_, out_) << "\n";
   return kSuccess;
+}
+
+void BenchmarkCommand::declare(CLI::App& parser) {
+  subcommand_ = parser.add_subcommand(
+      "benchmark",
+      "Every dataset the data directory and the project provide (imported or simulated), every "
+      "applicable method with its defaults, several seeds: one table of mean and worst-seed 2D "
+      "RMSE and coverage (benchmark.md, benchmark.json)");
+  auto* cmd = subcommand_;
+  cmd->add_option("--data-dir", data_dir_,
+                  "folder of public datasets (default: $UWBLOC_DATA_DIR, else ../shared/datasets)");
+  cmd->add_option("--out,-o", out_, "work folder: imports, simulations and the tables")
+      ->capture_default_str();
+  cmd->add_option("--seeds", seeds_, "seeds 1..N per method")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100));
+  cmd->add_option("--methods,-m", methods_, "comma-separated method specs (default: all)");
+  cmd->add_option("--datasets", datasets_,
+                  "comma-separated name fragments: only the datasets whose name holds one (e.g. "
+                  "hanyang,sim/office)");
+}
+
+int BenchmarkCommand::run() {
+  auto split = [](const std::string& text) {
+    std::vector<std::string> out;
+    std::istringstream in(text);
+    for (std::string item; std::getline(in, item, ',');)
+      if (!item.empty()) out.push_back(item);
+    return out;
+  };
+  eval::BenchmarkOptions o;
+  o.data_dir = data::resolveDataDir(data_dir_);
+  const std::string demo = data::resolveInputPath("mrpt_uwb_demo.ini", "");
+  o.project_datasets = std::filesystem::path(demo).parent_path().string();
+  o.work_dir = out_;
+  o.seeds = seeds_;
+  o.methods = split(methods_);
+  o.datasets = split(datasets_);
+  const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
+  const auto cells = eval::runBenchmark(eval::prepareBenchmarkDatasets(o, log), o, log);
+  const std::string md = eval::formatBenchmarkMarkdown(cells, seeds_);
+  data::writeFileAtomic((std::filesystem::path(out_) / "benchmark.md").string(), md);
+  data::writeFileAtomic((std::filesystem::path(out_) / "benchmark.json").string(),
+                        eval::formatBenchmarkJson(cells, seeds_));
+  std::cout << md << "Tables: " << out_ << "/benchmark.md, " << out_ << "/benchmark.json\n";
+  return cells.empty() ? kNoResult : kSuccess;
 }
 
 }  // namespace uwbloc::apps

@@ -1,0 +1,52 @@
+// The cross-dataset benchmark: every dataset the data directory and the project provide
+// (imported or simulated into a work folder), every applicable method with its defaults only,
+// several seeds; one table of mean and worst-seed 2D RMSE and coverage, as Markdown and JSON.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "uwbloc/evaluation/runner.hpp"
+
+namespace uwbloc::eval {
+
+struct BenchmarkOptions {
+  std::string data_dir;                ///< the public datasets ("" : those parts are skipped)
+  std::string project_datasets;        ///< the project's datasets/ folder (manifests, scenarios)
+  std::string work_dir = "runs/benchmark";  ///< imports and simulations go here
+  int seeds = 5;                       ///< seeds 1..seeds per method
+  std::vector<std::string> methods;    ///< empty: every registered method
+  std::vector<std::string> datasets;   ///< empty: all; else only those whose name contains one
+};
+
+/// One dataset of the benchmark, ready to load.
+struct BenchmarkDataset {
+  std::string name;      ///< e.g. "mrpt_demo", "hanyang/LOS_TrajA_Case1", "sim/office"
+  std::string manifest;  ///< path of its manifest
+};
+
+/// Imports, augments or simulates every dataset that is available; reports each step with
+/// `log` (one line each). Datasets whose source is missing are listed as skipped.
+std::vector<BenchmarkDataset> prepareBenchmarkDatasets(
+    const BenchmarkOptions& options, const std::function<void(const std::string&)>& log);
+
+struct BenchmarkCell {
+  std::string dataset;
+  std::string variant;  ///< "defaults" or "manifest facts" (the manifest's measured [uwb] sigma)
+  std::string method;
+  double mean_rmse = 0.0, worst_rmse = 0.0, coverage = 0.0;
+  std::string flag;  ///< resultFlag()
+};
+
+/// Runs every applicable method on every dataset, defaults only; a dataset whose manifest states
+/// facts measured on it ([uwb] sigma) is also run with them.
+std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& datasets,
+                                        const BenchmarkOptions& options,
+                                        const std::function<void(const std::string&)>& log);
+
+/// Methods as rows, datasets (and variants) as columns: "mean / worst" per cell.
+std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int seeds);
+std::string formatBenchmarkJson(const std::vector<BenchmarkCell>& cells, int seeds);
+
+}  // namespace uwbloc::eval
