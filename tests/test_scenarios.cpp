@@ -9,6 +9,7 @@
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/evaluation/benchmark.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -91,4 +92,30 @@ TEST(Carmen, ImportAndAugmentIntel) {
       ranges, gn.metrics.rmse_2d, gn.metrics.coverage);
   EXPECT_GT(gn.metrics.coverage, 0.9);
   EXPECT_LT(gn.metrics.rmse_2d, 1.0);
+}
+
+TEST(Benchmark, TableOfMeanAndWorstSeedOverDatasets) {
+  eval::BenchmarkOptions o;
+  o.project_datasets = std::string(UWBLOC_SOURCE_DIR) + "/datasets";
+  o.work_dir = test::scratchDir().string();
+  o.seeds = 3;
+  o.methods = {"uwb-gn", "uwb-ekf", "lidar-mcl"};
+  o.datasets = {"sim/static_los", "sim/pfibas_room"};
+  std::vector<std::string> lines;
+  const auto log = [&](const std::string& l) { lines.push_back(l); };
+  const auto datasets = eval::prepareBenchmarkDatasets(o, log);
+  ASSERT_EQ(datasets.size(), 2u);
+  const auto cells = eval::runBenchmark(datasets, o, log);
+  // static_los has no LiDAR: lidar-mcl does not run there.
+  ASSERT_EQ(cells.size(), 5u);
+  for (const auto& c : cells) {
+    EXPECT_LE(c.mean_rmse, c.worst_rmse + 1e-12) << c.dataset << " " << c.method;
+    EXPECT_GT(c.coverage, 0.9) << c.dataset << " " << c.method;
+    EXPECT_TRUE(c.flag.empty()) << c.flag;
+  }
+  const std::string md = eval::formatBenchmarkMarkdown(cells, 3);
+  EXPECT_NE(md.find("| method | sim/pfibas_room | sim/static_los |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| lidar-mcl |"), std::string::npos) << md;
+  const std::string json = eval::formatBenchmarkJson(cells, 3);
+  EXPECT_NE(json.find("\"rmse_2d_worst\""), std::string::npos);
 }
