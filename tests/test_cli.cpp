@@ -123,10 +123,11 @@ TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {
   uwbloc::data::writeRawlog((dir / "c.rawlog").string(), events);
   const auto manifest = manifestFor(dir, "c.rawlog");
   const auto out = (dir / "run").string();
-  expectFailureMentioning(runCli("compare -d " + manifest + " -m uwb-ls -o " + out),
-                          {"c.rawlog", "collapsed", "2 distinct stamps for 300 messages",
-                           "--allow-bad-time"});
-  const auto allowed = runCli("compare -d " + manifest + " -m uwb-ls -o " + out + " --allow-bad-time");
+  expectFailureMentioning(
+      runCli("compare -d " + manifest + " -m uwb-ls -o " + out),
+      {"c.rawlog", "collapsed", "2 distinct stamps for 300 messages", "--allow-bad-time"});
+  const auto allowed =
+      runCli("compare -d " + manifest + " -m uwb-ls -o " + out + " --allow-bad-time");
   EXPECT_EQ(allowed.code, 0) << allowed.output;
   EXPECT_NE(allowed.output.find("WARNING"), std::string::npos) << allowed.output;
 }

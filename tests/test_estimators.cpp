@@ -28,13 +28,22 @@ const data::Dataset& room() {
 // 2D RMSE bound of each method on the room with filter seed 1, about 1.5 times what it scores
 // (measured: `uwbloc compare -d <room>/dataset.ini --methods all`). A newly registered method
 // fails here until it states its bound.
-const std::map<std::string, double> kRoomBound = {
-    {"uwb-ls", 0.70},         {"uwb-gn", 0.60},         {"uwb-chan", 0.60},
-    {"uwb-kf", 0.33},         {"uwb-ekf", 0.25},        {"odom", 0.05},
-    {"lidar-icp", 0.17},      {"lidar-mcl", 0.03},      {"fused-naive", 0.04},
-    {"fused-pf", 0.03},       {"pf-sir", 0.03},         {"pf-ibas", 0.04},
-    {"pf-ibas-stratified", 0.04}, {"uwb-pf", 0.15},     {"graph-uwb-odom", 0.23},
-    {"pf-ibas+graph", 0.045}};
+const std::map<std::string, double> kRoomBound = {{"uwb-ls", 0.70},
+                                                  {"uwb-gn", 0.60},
+                                                  {"uwb-chan", 0.60},
+                                                  {"uwb-kf", 0.33},
+                                                  {"uwb-ekf", 0.25},
+                                                  {"odom", 0.05},
+                                                  {"lidar-icp", 0.17},
+                                                  {"lidar-mcl", 0.03},
+                                                  {"fused-naive", 0.04},
+                                                  {"fused-pf", 0.03},
+                                                  {"pf-sir", 0.03},
+                                                  {"pf-ibas", 0.04},
+                                                  {"pf-ibas-stratified", 0.04},
+                                                  {"uwb-pf", 0.15},
+                                                  {"graph-uwb-odom", 0.23},
+                                                  {"pf-ibas+graph", 0.045}};
 
 std::string testName(const ::testing::TestParamInfo<std::string>& info) {
   std::string n = info.param;
@@ -124,9 +133,14 @@ INSTANTIATE_TEST_SUITE_P(Registry, EveryMethod,
 // Uwb-only methods on the synthetic square loop (exact odometry, four anchors, no LiDAR).
 TEST(SyntheticLoop, UwbMethodsConverge) {
   const data::Dataset ds = test::makeSquareLoop(3);
-  for (const auto& [m, bound] : std::vector<std::pair<std::string, double>>{
-           {"uwb-ls", 0.15}, {"uwb-gn", 0.15}, {"uwb-chan", 0.15}, {"uwb-kf", 0.12},
-           {"uwb-ekf", 0.10}, {"odom", 1e-6}, {"graph-uwb-odom", 0.05}}) {
+  for (const auto& [m, bound] :
+       std::vector<std::pair<std::string, double>>{{"uwb-ls", 0.15},
+                                                   {"uwb-gn", 0.15},
+                                                   {"uwb-chan", 0.15},
+                                                   {"uwb-kf", 0.12},
+                                                   {"uwb-ekf", 0.10},
+                                                   {"odom", 1e-6},
+                                                   {"graph-uwb-odom", 0.05}}) {
     const auto run = eval::runMethod(ds, m, 3);
     const auto errors = eval::associate(run.trajectory, ds.ground_truth);
     const auto metrics = eval::computeMetrics(errors, run.trajectory, ds.ground_truth);
@@ -232,9 +246,10 @@ TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
   ds.end_time = loc::eventTime(ds.events.back());
   const auto fixed = eval::evaluateMethod(ds, "uwb-gn:window=0.15", 1, 1);
   const auto automatic = eval::evaluateMethod(ds, "uwb-gn", 1, 1);
-  std::printf("[ EPOCHS   ] one anchor at a time: window=0.15 coverage %.2f, auto coverage %.2f, "
-              "rmse %.3f m\n",
-              fixed.metrics.coverage, automatic.metrics.coverage, automatic.metrics.rmse_2d);
+  std::printf(
+      "[ EPOCHS   ] one anchor at a time: window=0.15 coverage %.2f, auto coverage %.2f, "
+      "rmse %.3f m\n",
+      fixed.metrics.coverage, automatic.metrics.coverage, automatic.metrics.rmse_2d);
   EXPECT_EQ(fixed.metrics.steps, 0);
   EXPECT_GT(automatic.metrics.coverage, 0.9);
   EXPECT_LT(automatic.metrics.rmse_2d, 0.4);  // the tag moves 0.26 m during one round

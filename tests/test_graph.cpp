@@ -9,10 +9,10 @@
 #include <fstream>
 #include <random>
 
+#include "graph/cost_functions.hpp"
 #include "uwbloc/dataset/pose_graph_file.hpp"
 #include "uwbloc/localization/events.hpp"
 #include "uwbloc/localization/graph/range_graph.hpp"
-#include "graph/cost_functions.hpp"
 
 using namespace uwbloc;
 using namespace uwbloc::loc::graph;
@@ -158,7 +158,7 @@ TEST(PoseGraph, ToroAndG2oStoreTheInformationInTheirOwnOrders) {
     const auto g = uwbloc::data::readPoseGraph2D(path);
     ASSERT_EQ(g.edges.size(), 1u) << path;
     EXPECT_TRUE(g.edges[0].information.isApprox(expected)) << path << "\n"
-                                                            << g.edges[0].information;
+                                                           << g.edges[0].information;
   }
   std::ofstream(g2o) << "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0 1 5 0 1 0 1\n";
   EXPECT_THROW(uwbloc::data::readPoseGraph2D(g2o), std::exception);  // not positive definite
@@ -247,15 +247,15 @@ TEST(RangeSlam, SelfCalibratesAnchors) {
 
 TEST(RangeSlam, RobustLossAgainstNlosOutliers) {
   const Synthetic s(9, 0.10);  // 10 % of the ranges +1 m
-  for (const auto loss : {graph::RobustLoss::kNone, graph::RobustLoss::kHuber, graph::RobustLoss::kCauchy}) {
+  for (const auto loss :
+       {graph::RobustLoss::kNone, graph::RobustLoss::kHuber, graph::RobustLoss::kCauchy}) {
     RangeGraph g = s.graph(s.anchors);
     RangeGraphParams params;
     params.loss = loss;
     params.odometry_sigma = {0.02, 0.02, 0.005};
     g.build(params);
     EXPECT_TRUE(g.solve().usable);
-    std::printf("[ GRAPH    ] 10%% NLOS (+1 m), loss %-6s: pose rmse %.4f m\n",
-                loc::enumName(loss),
+    std::printf("[ GRAPH    ] 10%% NLOS (+1 m), loss %-6s: pose rmse %.4f m\n", loc::enumName(loss),
                 s.poseRmse(g));
     if (loss == graph::RobustLoss::kCauchy) {
       EXPECT_LT(s.poseRmse(g), 0.08);

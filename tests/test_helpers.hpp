@@ -59,13 +59,13 @@ constexpr const char* kDemoRawlog = "/usr/share/mrpt/datasets/uwb_ro-localizatio
 
 /// Stops the test when a shared dataset is missing: skipped (with the file named) outside CI,
 /// failed in CI, so that a missing dataset never turns CI green.
-#define UWBLOC_REQUIRE_SHARED_DATA(path)                                                   \
-  do {                                                                                     \
-    if (!std::filesystem::exists(path)) {                                                  \
-      if (::uwbloc::test::inCi())                                                          \
+#define UWBLOC_REQUIRE_SHARED_DATA(path)                                                    \
+  do {                                                                                      \
+    if (!std::filesystem::exists(path)) {                                                   \
+      if (::uwbloc::test::inCi())                                                           \
         FAIL() << "missing shared dataset " << (path) << " (CI=true: the datasets must be " \
-               << "at ../shared/datasets or $UWBLOC_DATA_DIR)";                            \
-      GTEST_SKIP() << "missing shared dataset " << (path)                                  \
-                   << " (set UWBLOC_DATA_DIR to the shared datasets folder)";              \
-    }                                                                                      \
+               << "at ../shared/datasets or $UWBLOC_DATA_DIR)";                             \
+      GTEST_SKIP() << "missing shared dataset " << (path)                                   \
+                   << " (set UWBLOC_DATA_DIR to the shared datasets folder)";               \
+    }                                                                                       \
   } while (0)

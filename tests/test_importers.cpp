@@ -179,8 +179,10 @@ TEST(Hanyang, RowsWithUnusableStampsOrPosesAreSkippedAndCounted) {
   for (int id : {3, 5, 9}) {
     std::string rows = header;
     for (int k = 0; k < 5; ++k) {
-      const std::string stamp = (id == 3 && k == 2) ? "nan" : std::to_string(1000000000LL * (k + 1));
-      rows += "0," + stamp + "," + std::to_string(id) + "," + std::to_string(id) + ",0,2,5.0,-80,-82\n";
+      const std::string stamp =
+          (id == 3 && k == 2) ? "nan" : std::to_string(1000000000LL * (k + 1));
+      rows +=
+          "0," + stamp + "," + std::to_string(id) + "," + std::to_string(id) + ",0,2,5.0,-80,-82\n";
     }
     test::writeText(dir / ("A" + std::to_string(id) + ".csv"), rows);
   }

@@ -2,8 +2,8 @@
 // ray-cast detector on constructed segments.
 #include <gtest/gtest.h>
 
-#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/world.hpp"
 #include "uwbloc/evaluation/nlos_score.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"

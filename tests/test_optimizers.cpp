@@ -160,8 +160,9 @@ TEST(Ibas, PlateauTiesStillMove) {
   const Eigen::MatrixXd start = pos;
   Rng rng(3);
   const Box box{Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, 1)};
-  swarm.maximize(pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box, 5, 0.1,
-                 rng, nullptr, nullptr);
+  swarm.maximize(
+      pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box, 5, 0.1, rng, nullptr,
+      nullptr);
   EXPECT_GT((pos - start).norm(), 0.0);
   EXPECT_TRUE(pos.allFinite());
   EXPECT_LE(pos.cwiseAbs().maxCoeff(), 1.0);
@@ -170,7 +171,8 @@ TEST(Ibas, PlateauTiesStillMove) {
   still.random_tie_direction = false;
   BeetleSwarm filter_swarm(still);
   pos.setZero();
-  filter_swarm.maximize(pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box,
-                        5, 0.1, rng, nullptr, nullptr);
+  filter_swarm.maximize(
+      pos, [](const Eigen::Ref<const Eigen::VectorXd>&) { return 1.0; }, box, 5, 0.1, rng, nullptr,
+      nullptr);
   EXPECT_EQ((pos - start).norm(), 0.0);
 }

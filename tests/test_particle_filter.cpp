@@ -34,7 +34,8 @@ class Resamplers : public ::testing::TestWithParam<ResamplerKind> {
     }
     for (size_t i = 0; i < w.size(); ++i) {
       const double se = std::sqrt(m * w[i] * (1 - w[i]) / trials) + 1e-9;
-      EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12) << enumName(GetParam()) << " " << i;
+      EXPECT_NEAR(copies[i] / trials, m * w[i], 4.5 * se + 1e-12)
+          << enumName(GetParam()) << " " << i;
     }
     return copies;
   }

@@ -8,10 +8,10 @@
 #include <utility>
 
 #include "simulated_scenario.hpp"
-#include "uwbloc/dataset/world.hpp"
-#include "uwbloc/dataset/dataset.hpp"
-#include "uwbloc/evaluation/runner.hpp"
 #include "test_helpers.hpp"
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/world.hpp"
+#include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/methods/particle_localizer.hpp"
 #include "uwbloc/localization/registry.hpp"
 
@@ -181,8 +181,8 @@ TEST(PfIbasRoom, SequentialWeightsMatchTwoHundredParticles) {
 
 TEST(PfIbas, UnknownWeightingIsNamed) {
   Rig rig({{1, {0, 0, 2}}});
-  test::expectErrorMentions<loc::ParamError>(
-      [&] { pfIbas("likelihood", rig.ctx); }, {"ibas_weights", "likelihood", "sequential"});
+  test::expectErrorMentions<loc::ParamError>([&] { pfIbas("likelihood", rig.ctx); },
+                                             {"ibas_weights", "likelihood", "sequential"});
 }
 
 TEST(PfIbas, CollapsedSwarmGetsDiversityCountedApartFromRejections) {

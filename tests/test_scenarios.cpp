@@ -46,8 +46,8 @@ TEST(Greenhouse, TableBesideThePaper) {
     double uwb = 0.0, kf = 0.0;
     const int seeds = 5;
     for (int seed = 1; seed <= seeds; ++seed) {
-      const auto ds =
-          test::simulatedScenario("greenhouse_r" + std::to_string(level + 1), static_cast<uint64_t>(seed));
+      const auto ds = test::simulatedScenario("greenhouse_r" + std::to_string(level + 1),
+                                              static_cast<uint64_t>(seed));
       uwb += eval::evaluateMethod(ds, "uwb-ls", 1, 1).metrics.mae_2d / seeds;
       const std::string kf_spec = "uwb-kf:solver=ls,sigma=" + std::to_string(sigma[level]);
       kf += eval::evaluateMethod(ds, kf_spec, 1, 1).metrics.mae_2d / seeds;
@@ -61,8 +61,7 @@ TEST(Greenhouse, TableBesideThePaper) {
 }
 
 TEST(Carmen, ImportAndAugmentIntel) {
-  const auto log =
-      test::sharedData("carmen_2d_laser/intel-corrected.log.gz");
+  const auto log = test::sharedData("carmen_2d_laser/intel-corrected.log.gz");
   UWBLOC_REQUIRE_SHARED_DATA(log);
   const auto dir = test::scratchDir();
   const auto imported = data::importCarmen(log.string(), (dir / "intel").string());

@@ -8,12 +8,12 @@
 #include <fstream>
 #include <sstream>
 
-#include "test_helpers.hpp"
 #include "lidar/mrpt_grid.hpp"
-#include "uwbloc/dataset/world.hpp"
+#include "test_helpers.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/scenario.hpp"
 #include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/dataset/world.hpp"
 
 using namespace uwbloc;
 using data::InputError;

@@ -23,8 +23,8 @@ int main() {
       r.tag_on_robot << 0, 0, 1.0;
       if (auto e = estimator->process(r)) {
         if (k % 10 == 0 && a.id == 4)
-          std::printf("t=%.1f  x=%.3f  y=%.3f  (truth %.3f %.3f)\n", e->t, e->pose.x(),
-                      e->pose.y(), tag.x(), tag.y());
+          std::printf("t=%.1f  x=%.3f  y=%.3f  (truth %.3f %.3f)\n", e->t, e->pose.x(), e->pose.y(),
+                      tag.x(), tag.y());
         ++poses;
       }
     }

@@ -1,10 +1,19 @@
 #include "uwbloc/apps/command.hpp"
 
 #include <CLI/CLI.hpp>
+#include <sstream>
 
 #include "commands.hpp"
 
 namespace uwbloc::apps {
+
+std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string item; std::getline(in, item, ',');)
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
 
 bool Command::chosen() const { return subcommand_ && subcommand_->parsed(); }
 

@@ -12,6 +12,9 @@
 
 namespace uwbloc::apps {
 
+/// "a,b,,c" -> {"a", "b", "c"}.
+std::vector<std::string> splitList(const std::string& text);
+
 /// Options of every command that runs methods on a dataset.
 struct RunOptions {
   std::string dataset = "mrpt_uwb_demo.ini";

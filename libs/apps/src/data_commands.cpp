@@ -43,8 +43,8 @@ int ImportCommand::run() {
   else
     s = data::importCarmen(src, out_);
   std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors, " << s.scans
-            << " scans and " << s.ground_truth_rows << " reference poses\nManifest: "
-            << s.manifest << "\n";
+            << " scans and " << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest
+            << "\n";
   for (const auto& note : s.notes) std::cout << note << "\n";
   for (const auto& [reason, count] : s.skipped)
     std::cout << "Skipped " << count << " rows: " << reason << "\n";
@@ -61,8 +61,7 @@ void SimulateCommand::declare(CLI::App& parser) {
                    "scenario INI (as given, or in the project's datasets/scenarios/)")
       ->required();
   subcommand_->add_option("--out,-o", out_, "output folder")->required();
-  subcommand_
-      ->add_option("--seed", seed_, "random seed; the same seed gives byte-identical files")
+  subcommand_->add_option("--seed", seed_, "random seed; the same seed gives byte-identical files")
       ->capture_default_str();
 }
 
@@ -124,21 +123,14 @@ void BenchmarkCommand::declare(CLI::App& parser) {
 }
 
 int BenchmarkCommand::run() {
-  auto split = [](const std::string& text) {
-    std::vector<std::string> out;
-    std::istringstream in(text);
-    for (std::string item; std::getline(in, item, ',');)
-      if (!item.empty()) out.push_back(item);
-    return out;
-  };
   eval::BenchmarkOptions o;
   o.data_dir = data::resolveDataDir(data_dir_);
   const std::string demo = data::resolveInputPath("mrpt_uwb_demo.ini", "");
   o.project_datasets = std::filesystem::path(demo).parent_path().string();
   o.work_dir = out_;
   o.seeds = seeds_;
-  o.methods = split(methods_);
-  o.datasets = split(datasets_);
+  o.methods = splitList(methods_);
+  o.datasets = splitList(datasets_);
   const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
   const auto cells = eval::runBenchmark(eval::prepareBenchmarkDatasets(o, log), o, log);
   const std::string md = eval::formatBenchmarkMarkdown(cells, seeds_);

@@ -14,8 +14,9 @@ void BenchOptimizersCommand::declare(CLI::App& parser) {
   subcommand_ = parser.add_subcommand(
       "bench-optimizers", "The PF-IBAS paper's Table 2: optimisers on benchmark functions");
   auto* cmd = subcommand_;
-  cmd->add_option("--runs", runs_, "runs per cell")->capture_default_str()->check(
-      CLI::Range(1, 100000));
+  cmd->add_option("--runs", runs_, "runs per cell")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
   cmd->add_option("--population", settings_.population, "population")
       ->capture_default_str()
       ->check(CLI::Range(1, 100000));
@@ -25,8 +26,7 @@ void BenchOptimizersCommand::declare(CLI::App& parser) {
   cmd->add_option("--step", settings_.initial_step, "initial step (BAS, IBAS)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--optimizers", optimizers_, "comma-separated optimisers")
-      ->capture_default_str();
+  cmd->add_option("--optimizers", optimizers_, "comma-separated optimisers")->capture_default_str();
   cmd->add_option("--functions", functions_,
                   "comma-separated functions (also michalewicz, goldstein_price)")
       ->capture_default_str();
@@ -37,15 +37,8 @@ void BenchOptimizersCommand::declare(CLI::App& parser) {
 }
 
 int BenchOptimizersCommand::run() {
-  auto split = [](const std::string& text) {
-    std::vector<std::string> out;
-    std::istringstream in(text);
-    for (std::string item; std::getline(in, item, ',');)
-      if (!item.empty()) out.push_back(item);
-    return out;
-  };
-  const auto cells =
-      eval::optimizerTable(split(optimizers_), split(functions_), runs_, settings_, seed_, dim_);
+  const auto cells = eval::optimizerTable(splitList(optimizers_), splitList(functions_), runs_,
+                                          settings_, seed_, dim_);
   std::printf("%d runs, population %d, %d iterations, initial step %g, f1-f5 in %d-D\n", runs_,
               settings_.population, settings_.iterations, settings_.initial_step, dim_);
   std::cout << eval::formatOptimizerTable(cells);

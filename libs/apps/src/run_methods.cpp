@@ -84,10 +84,10 @@ std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptio
 }  // namespace
 
 void RunMethodsCommand::declare(CLI::App& parser) {
-  subcommand_ = compare_ ? parser.add_subcommand(
-                               "compare",
-                               "Run several methods on one dataset and print the comparison table")
-                         : parser.add_subcommand("run", "Run one method on a dataset and score it");
+  subcommand_ =
+      compare_ ? parser.add_subcommand(
+                     "compare", "Run several methods on one dataset and print the comparison table")
+               : parser.add_subcommand("run", "Run one method on a dataset and score it");
   auto* cmd = subcommand_;
   RunOptions& opt = options_;
   cmd->add_option("--dataset,-d", opt.dataset,

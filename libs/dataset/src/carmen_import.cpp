@@ -7,6 +7,7 @@
 #include <optional>
 #include <sstream>
 
+#include "odometry_poses.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
@@ -54,8 +55,8 @@ loc::LaserScan flaserScan(size_t n, double t, Num& num) {
 }
 
 struct CarmenLog {
-  std::vector<loc::Event> events;    ///< scans and odometry increments, in time order
-  std::vector<TimedPose> reference;  ///< the FLASER lines' corrected poses
+  std::vector<loc::Event> events;       ///< scans and odometry increments, in time order
+  std::vector<TimedPose> reference;     ///< the FLASER lines' corrected poses
   std::map<std::string, long> skipped;  ///< lines left out, by reason
 };
 
@@ -76,24 +77,17 @@ class CarmenOdometry {
   explicit CarmenOdometry(CarmenLog& log) : log_(log) {}
   void flaser(const Eigen::Vector3d& corrected) { last_corrected_ = corrected; }
   void odom(double t, const Eigen::Vector3d& pose) {
-    if (last_corrected_ && samePose(pose, *last_corrected_)) return skip("odom_corrected_pose_copy");
+    if (last_corrected_ && samePose(pose, *last_corrected_))
+      return skip("odom_corrected_pose_copy");
     if (const char* problem = timestampProblem(t)) return skip(std::string("odom_") + problem);
-    if (last_ && t < last_t_) return skip("odom_out_of_order");
-    if (last_) {
-      loc::OdometryIncrement inc;
-      inc.t = t;
-      inc.delta = loc::relativePose(*last_, pose);
-      log_.events.emplace_back(inc);
-    }
-    last_ = pose;
-    last_t_ = t;
+    if (!odometry_.add(t, pose, log_.events)) return skip("odom_out_of_order");
   }
 
  private:
   void skip(const std::string& reason) { ++log_.skipped[reason]; }
   CarmenLog& log_;
-  std::optional<Eigen::Vector3d> last_, last_corrected_;
-  double last_t_ = 0.0;
+  OdometryFromPoses odometry_;
+  std::optional<Eigen::Vector3d> last_corrected_;
 };
 
 // The scans, odometry and corrected poses of a CARMEN log.
@@ -126,7 +120,8 @@ CarmenLog parseCarmen(const std::string& log_path) {
       if (f.size() < n + 10) throwInputError(log_path, number, "FLASER line too short");
       const double t = num(n + 7, "ipc_timestamp");
       const Eigen::Vector3d corrected(num(n + 1, "x"), num(n + 2, "y"), num(n + 3, "theta"));
-      const Eigen::Vector3d own(num(n + 4, "odom_x"), num(n + 5, "odom_y"), num(n + 6, "odom_theta"));
+      const Eigen::Vector3d own(num(n + 4, "odom_x"), num(n + 5, "odom_y"),
+                                num(n + 6, "odom_theta"));
       if (const char* problem = timestampProblem(t)) {
         ++log.skipped[std::string("flaser_") + problem];
         continue;

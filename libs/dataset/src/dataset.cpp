@@ -1,9 +1,8 @@
 #include "uwbloc/dataset/dataset.hpp"
 
 #include <algorithm>
-#include <cstdio>
-
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <tuple>
 

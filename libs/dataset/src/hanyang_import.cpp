@@ -89,7 +89,8 @@ uwb::Anchor readAnchorFile(const std::string& file, const HanyangImportParams& p
     }
     uwb::Range r;
     r.t = parseNumber(f[1], file, line, "field.stamp") * 1e-9;
-    if (const char* problem = timestampProblem(r.t)) return void(++skipped[std::string("range_") + problem]);
+    if (const char* problem = timestampProblem(r.t))
+      return void(++skipped[std::string("range_") + problem]);
     r.anchor_id = id;
     r.range = parseNumber(f[6], file, line, "field.distanceFromTag");
     r.tag_on_robot << 0.0, 0.0, params.tag_height;

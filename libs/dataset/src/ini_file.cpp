@@ -22,7 +22,8 @@ std::string trim(const std::string& s) {
 // `front=pf-ibas:k=v;k=v` and `path=a//b` keep every character.
 std::string stripComment(const std::string& s) {
   for (size_t i = 0; i < s.size(); ++i) {
-    const bool mark = s[i] == '#' || s[i] == ';' || (s[i] == '/' && i + 1 < s.size() && s[i + 1] == '/');
+    const bool mark =
+        s[i] == '#' || s[i] == ';' || (s[i] == '/' && i + 1 < s.size() && s[i + 1] == '/');
     if (mark && (i == 0 || s[i - 1] == ' ' || s[i - 1] == '\t')) return s.substr(0, i);
   }
   return s;

@@ -195,8 +195,7 @@ BoundsSpec readBounds(const IniFile& ini, const std::string& path) {
   b.accel_psd = ini.getDouble("bounds", "accel_psd", b.accel_psd);
   b.motion = ini.getString("bounds", "motion", b.motion);
   if (b.motion != "cv" && b.motion != "odometry")
-    throwInputError(path, ini.lineOf("bounds", "motion"),
-                    "[bounds] motion must be cv or odometry");
+    throwInputError(path, ini.lineOf("bounds", "motion"), "[bounds] motion must be cv or odometry");
   b.odom_sigma_xy_per_m = ini.getDouble("bounds", "odom_sigma_xy_per_m", b.odom_sigma_xy_per_m);
   b.odom_sigma_theta_per_rad =
       ini.getDouble("bounds", "odom_sigma_theta_per_rad", b.odom_sigma_theta_per_rad);

@@ -59,9 +59,8 @@ double detectDirection(const std::vector<DrRow>& dr, const std::vector<TimedPose
   return err[1] < err[0] ? -1.0 : 1.0;
 }
 
-}  // namespace
-
-ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
+// The file prefix of a Plaza folder ("Plaza2" for Plaza2_DR.txt).
+std::string plazaPrefix(const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throwInputError(dir, 0, "folder not found");
   std::string prefix;
@@ -70,25 +69,38 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
     if (n.size() > 7 && n.rfind("_DR.txt") == n.size() - 7) prefix = n.substr(0, n.size() - 7);
   }
   if (prefix.empty()) throwInputError(dir, 0, "no Plaza*_DR.txt file");
-  const auto file = [&](const char* suffix) {
-    return (fs::path(dir) / (prefix + suffix)).string();
-  };
+  return prefix;
+}
 
-  ImportSummary summary;
-  std::vector<loc::Event> events;
+// The dead-reckoning rows (t, distance, heading change), bad rows skipped and counted.
+std::vector<DrRow> readDeadReckoning(const std::string& dr, ImportSummary& summary) {
   std::vector<DrRow> dr_rows;
-  const std::string dr = file("_DR.txt");
   forEachRow(dr, [&](int line, const std::vector<std::string>& f) {
     if (f.size() < 3) throwInputError(dr, line, "expected 't distance heading_change'");
     const DrRow r{parseNumber(f[0], dr, line, "t"), parseNumber(f[1], dr, line, "distance"),
                   parseNumber(f[2], dr, line, "heading_change")};
-    if (const char* problem = timestampProblem(r.t)) return void(++summary.skipped[std::string("odometry_") + problem]);
+    if (const char* problem = timestampProblem(r.t))
+      return void(++summary.skipped[std::string("odometry_") + problem]);
     if (!std::isfinite(r.distance) || !std::isfinite(r.heading_change))
       return void(++summary.skipped["odometry_non_finite"]);
     if (!dr_rows.empty() && r.t < dr_rows.back().t)
       return void(++summary.skipped["odometry_out_of_order"]);
     dr_rows.push_back(r);
   });
+  return dr_rows;
+}
+
+}  // namespace
+
+ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
+  const std::string prefix = plazaPrefix(dir);
+  const auto file = [&](const char* suffix) {
+    return (fs::path(dir) / (prefix + suffix)).string();
+  };
+
+  ImportSummary summary;
+  std::vector<loc::Event> events;
+  const std::vector<DrRow> dr_rows = readDeadReckoning(file("_DR.txt"), summary);
   std::vector<uwb::Anchor> anchors;
   const std::string tl = file("_TL.txt");
   forEachRow(tl, [&](int line, const std::vector<std::string>& f) {
@@ -102,7 +114,8 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
     if (f.size() < 4) throwInputError(td, line, "expected 't sender beacon range'");
     uwb::Range r;
     r.t = parseNumber(f[0], td, line, "t");
-    if (const char* problem = timestampProblem(r.t)) return void(++summary.skipped[std::string("range_") + problem]);
+    if (const char* problem = timestampProblem(r.t))
+      return void(++summary.skipped[std::string("range_") + problem]);
     r.anchor_id = static_cast<int>(parseNumber(f[2], td, line, "beacon"));
     r.range = parseNumber(f[3], td, line, "range");
     r.tag_on_robot.setZero();

@@ -15,6 +15,7 @@
 #include <filesystem>
 
 #include "mrpt_scan.hpp"
+#include "odometry_poses.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 
@@ -80,19 +81,10 @@ class Converter {
       ++rec_.counts["imu_observations"];
     } else if (const auto* o = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs)) {
       const Eigen::Vector3d pose(o->odometry.x(), o->odometry.y(), o->odometry.phi());
-      if (last_odometry_ && t < last_odometry_t_) {
-        // An odometry reading stamped before the previous one is not a later pose.
+      if (!odometry_.add(t, pose, rec_.events)) {
         ++rec_.counts["rejected_odometry_out_of_order"];
         return;
       }
-      last_odometry_t_ = t;
-      if (last_odometry_) {
-        loc::OdometryIncrement inc;
-        inc.t = t;
-        inc.delta = loc::relativePose(*last_odometry_, pose);
-        rec_.events.emplace_back(inc);
-      }
-      last_odometry_ = pose;
       ++rec_.counts["odometry_observations"];
     } else {
       ++rec_.counts[std::string("ignored_") + obs.GetRuntimeClass()->className];
@@ -149,8 +141,7 @@ class Converter {
   Recording& rec_;
   double last_t_ = 0.0;
   std::optional<loc::OdometryIncrement> pending_action_;
-  std::optional<Eigen::Vector3d> last_odometry_;
-  double last_odometry_t_ = 0.0;
+  OdometryFromPoses odometry_;
 };
 
 }  // namespace

@@ -158,8 +158,7 @@ std::optional<loc::OccupancyMap> scenarioMap(const Scenario& s) {
       throw InputError(s.path + ": [world] map: " + e.what());
     }
   }
-  if (s.bounds)
-    return mapFromRectangles(*s.bounds, s.obstacles, s.map_resolution, s.walls);
+  if (s.bounds) return mapFromRectangles(*s.bounds, s.obstacles, s.map_resolution, s.walls);
   return std::nullopt;
 }
 

@@ -88,7 +88,6 @@ class RangeModel {
   Rng& rng_;
 };
 
-
 // One row per simulated range: its truth, error and NLOS flag.
 std::string formatRangeTruth(const std::vector<RangeTruth>& truth) {
   std::string out = "t,tag_id,anchor_id,true_range,error,nlos\n";
@@ -133,8 +132,8 @@ void simulateUwb(const Scenario& s, const TrajectorySampler& robot,
       const double t = k / rate + offset;
       if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
       const Eigen::Vector3d pose = robot.pose(t);
-      model.measure(t0 + t, 0, uwb::tagPosition(pose, s.uwb.tag), s.anchors[i], s.uwb.tag, sim.events,
-                    &sim.range_truth);
+      model.measure(t0 + t, 0, uwb::tagPosition(pose, s.uwb.tag), s.anchors[i], s.uwb.tag,
+                    sim.events, &sim.range_truth);
       if (tag2) {
         const Eigen::Vector3d p2 = tag2->pose(t);
         const Eigen::Vector3d tag2_world(p2.x(), p2.y(), s.tag2.height);
@@ -150,7 +149,6 @@ void simulateUwb(const Scenario& s, const TrajectorySampler& robot,
   }
   std::stable_sort(sim.range_truth.begin(), sim.range_truth.end(),
                    [](const RangeTruth& a, const RangeTruth& b) { return a.t < b.t; });
-
 }
 
 // Odometry: increments with noise growing with the motion.
@@ -178,8 +176,7 @@ void simulateOdometry(const Scenario& s, const TrajectorySampler& robot, Rng& rn
 }
 
 // IMU: body-frame acceleration and yaw rate from the true motion, white noise and bias walk.
-void simulateImu(const Scenario& s, const TrajectorySampler& robot, Rng& rng_imu,
-                 Simulation& sim) {
+void simulateImu(const Scenario& s, const TrajectorySampler& robot, Rng& rng_imu, Simulation& sim) {
   const double t0 = s.start_time;
   std::normal_distribution<double> n01(0.0, 1.0);
   const double dt = 1.0 / s.imu.rate;
@@ -372,7 +369,6 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
 
   if (s.uwb.features)
     writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(sim.events));
-
 
   const auto map = scenarioMap(s);
   if (map) map->save((out / "map.gridmap.gz").string());

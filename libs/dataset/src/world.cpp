@@ -32,8 +32,9 @@ LidarParams LidarParams::preset(const std::string& name) {
   return p;
 }
 
-loc::OccupancyMap mapFromRectangles(const loc::Rect& bounds, const std::vector<loc::Rect>& obstacles,
-                                    double resolution, bool walls) {
+loc::OccupancyMap mapFromRectangles(const loc::Rect& bounds,
+                                    const std::vector<loc::Rect>& obstacles, double resolution,
+                                    bool walls) {
   const double margin = walls ? resolution : 0.0;
   loc::OccupancyMap map = loc::OccupancyMap::blank(
       {bounds.xmin - margin, bounds.ymin - margin, bounds.xmax + margin, bounds.ymax + margin},
@@ -85,8 +86,8 @@ loc::LaserScan castScan(const loc::OccupancyMap& map, const Eigen::Vector3d& rob
   const size_t n = scan.ranges.size();
   scan.angle_increment = static_cast<float>(n > 1 ? lidar.fov / static_cast<double>(n - 1) : 0.0);
   for (size_t i = 0; i < scan.ranges.size(); ++i)
-    scan.valid[i] = scan.valid[i] && scan.ranges[i] >= lidar.min_range &&
-                    scan.ranges[i] < lidar.max_range;
+    scan.valid[i] =
+        scan.valid[i] && scan.ranges[i] >= lidar.min_range && scan.ranges[i] < lidar.max_range;
   return scan;
 }
 

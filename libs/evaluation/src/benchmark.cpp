@@ -52,7 +52,8 @@ void addCarmen(const BenchmarkOptions& o, const std::string& log_name,
                const std::function<void(const std::string&)>& log) {
   const fs::path src = fs::path(o.data_dir) / "carmen_2d_laser" / (log_name + "-corrected.log.gz");
   std::error_code ec;
-  if (!fs::exists(src, ec)) return log("skipped carmen/" + log_name + ": " + src.string() + " not found");
+  if (!fs::exists(src, ec))
+    return log("skipped carmen/" + log_name + ": " + src.string() + " not found");
   const fs::path dir = fs::path(o.work_dir) / "carmen" / log_name;
   if (wanted(o, "carmen/" + log_name)) {
     const auto s = data::importCarmen(src.string(), dir.string());
@@ -60,8 +61,8 @@ void addCarmen(const BenchmarkOptions& o, const std::string& log_name,
   }
   if (!wanted(o, "carmen/" + log_name + "+uwb")) return;
   if (!fs::exists(dir / "reference.txt", ec)) data::importCarmen(src.string(), dir.string());
-  const auto reference = data::readGroundTruth((dir / "reference.txt").string(),
-                                               data::GroundTruthFormat::kTimeXyPhi);
+  const auto reference =
+      data::readGroundTruth((dir / "reference.txt").string(), data::GroundTruthFormat::kTimeXyPhi);
   data::writeFileAtomic((dir / "anchors.csv").string(),
                         data::formatAnchorsCsv(anchorsOnThePath(reference, 6)));
   data::AugmentRequest req;
@@ -70,8 +71,8 @@ void addCarmen(const BenchmarkOptions& o, const std::string& log_name,
   req.anchors_csv = (dir / "anchors.csv").string();
   req.map = "scans";
   out.push_back({"carmen/" + log_name + "+uwb",
-                 data::writeAugmented(req, (fs::path(o.work_dir) / "carmen" /
-                                            (log_name + "_uwb")).string())});
+                 data::writeAugmented(
+                     req, (fs::path(o.work_dir) / "carmen" / (log_name + "_uwb")).string())});
 }
 
 std::string cellText(const BenchmarkCell& c) {
@@ -103,14 +104,15 @@ std::vector<BenchmarkDataset> prepareBenchmarkDatasets(
         log("skipped " + name + ": " + src.string() + " not found");
         continue;
       }
-      out.push_back({name, data::importHanyang(src.string(), (fs::path(o.work_dir) / name).string())
-                               .manifest});
+      out.push_back(
+          {name,
+           data::importHanyang(src.string(), (fs::path(o.work_dir) / name).string()).manifest});
     }
     const fs::path plaza = fs::path(o.data_dir) / "plaza_cmu_range_odometry";
     if (wanted(o, "plaza/Plaza2") && fs::is_directory(plaza, ec))
-      out.push_back({"plaza/Plaza2",
-                     data::importPlaza(plaza.string(), (fs::path(o.work_dir) / "plaza").string())
-                         .manifest});
+      out.push_back(
+          {"plaza/Plaza2",
+           data::importPlaza(plaza.string(), (fs::path(o.work_dir) / "plaza").string()).manifest});
     for (const char* log_name : {"intel", "aces"}) addCarmen(o, log_name, out, log);
   } else {
     log("no data directory: the public datasets are skipped");

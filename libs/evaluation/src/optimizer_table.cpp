@@ -1,4 +1,3 @@
-#include "uwbloc/evaluation/benchmark_functions.hpp"
 #include "uwbloc/evaluation/optimizer_table.hpp"
 
 #include <algorithm>
@@ -6,6 +5,8 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+
+#include "uwbloc/evaluation/benchmark_functions.hpp"
 
 namespace uwbloc::eval {
 

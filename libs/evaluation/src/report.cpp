@@ -160,11 +160,10 @@ void tableRows(std::ostringstream& out, const std::vector<MethodSummary>& method
         << " " << std::setw(6) << m.metrics.steps << " " << num(m.metrics.coverage, 5, 2) << " "
         << num(m.metrics.rmse_x, 7, 3) << " " << num(m.metrics.rmse_y, 7, 3) << " "
         << num(m.metrics.rmse_2d, 7, 3) << " " << num(m.rmse_2d_std, 6, 3) << " "
-        << num(m.worstRmse(), 7, 3) << " "
-        << num(m.metrics.mae_2d, 7, 3) << " " << num(m.metrics.median_2d, 7, 3) << " "
-        << num(m.metrics.p95_2d, 7, 3) << " " << num(m.metrics.max_2d, 7, 3) << " "
-        << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " " << std::setw(7)
-        << totalRejected(m) << "\n";
+        << num(m.worstRmse(), 7, 3) << " " << num(m.metrics.mae_2d, 7, 3) << " "
+        << num(m.metrics.median_2d, 7, 3) << " " << num(m.metrics.p95_2d, 7, 3) << " "
+        << num(m.metrics.max_2d, 7, 3) << " " << num(m.ms_per_step, 9, 4) << " "
+        << num(m.realtime_factor, 8, 0) << " " << std::setw(7) << totalRejected(m) << "\n";
   }
 }
 

@@ -1,14 +1,10 @@
 #include "uwbloc/localization/params.hpp"
 
-#include <ostream>
-
-#include <istream>
-
-#include <cstdlib>
-
-#include <cmath>
-
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <istream>
+#include <ostream>
 
 namespace uwbloc::loc {
 

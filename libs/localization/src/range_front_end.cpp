@@ -74,7 +74,8 @@ double EpochBuffer::window() const {
   const size_t n = std::min(gaps_seen_, gaps_.size());
   if (n == 0 || anchors_seen_.size() < 2) return kMinEpochWindow;
   std::array<double, 64> g = gaps_;
-  std::nth_element(g.begin(), g.begin() + static_cast<long>(n / 2), g.begin() + static_cast<long>(n));
+  std::nth_element(g.begin(), g.begin() + static_cast<long>(n / 2),
+                   g.begin() + static_cast<long>(n));
   const double round = 1.2 * static_cast<double>(anchors_seen_.size() - 1) * g[n / 2];
   return std::max(kMinEpochWindow, round);
 }

@@ -121,12 +121,13 @@ void RangeGraph::build(const RangeGraphParams& params) {
                        anchors_[static_cast<size_t>(r.anchor)].position.data(),
                        &biases_[static_cast<size_t>(r.anchor)]);
   }
-  const Eigen::Matrix3d default_sqrt_information = params_.odometry_sigma.cwiseInverse().asDiagonal();
+  const Eigen::Matrix3d default_sqrt_information =
+      params_.odometry_sigma.cwiseInverse().asDiagonal();
   for (const auto& o : odometry_)
-    p.AddResidualBlock(RelativePoseCost::Create(
-                           o.delta, o.sqrt_information.value_or(default_sqrt_information)),
-                       nullptr, poses_[static_cast<size_t>(o.from)].data(),
-                       poses_[static_cast<size_t>(o.to)].data());
+    p.AddResidualBlock(
+        RelativePoseCost::Create(o.delta, o.sqrt_information.value_or(default_sqrt_information)),
+        nullptr, poses_[static_cast<size_t>(o.from)].data(),
+        poses_[static_cast<size_t>(o.to)].data());
   for (auto& l : landmarks_) p.AddParameterBlock(l.data(), 2);
   for (const auto& o : landmark_obs_)
     p.AddResidualBlock(LandmarkCost::Create(o.z, o.sigma), nullptr,

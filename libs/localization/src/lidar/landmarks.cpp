@@ -55,8 +55,7 @@ std::vector<LineSegment> extractLines(const LaserScan& scan, const LandmarkExtra
   forEachScanEndpoint(scan, 1, std::numeric_limits<double>::min(),
                       std::nextafter(p.max_range, HUGE_VAL),
                       [&](size_t i, const Eigen::Vector2d& q) {
-                        if (i != next || (!pts.empty() && (q - pts.back()).norm() > p.gap))
-                          flush();
+                        if (i != next || (!pts.empty() && (q - pts.back()).norm() > p.gap)) flush();
                         pts.push_back(q);
                         next = i + 1;
                       });

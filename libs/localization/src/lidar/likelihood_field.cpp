@@ -64,8 +64,8 @@ void LikelihoodField::setScan(const LaserScan& scan) {
   ey_.clear();
   // Max-range readings are no returns.
   const double max_range = std::min(params_.max_range, scan.max_range - 1e-3);
-  forEachScanEndpoint(scan, static_cast<size_t>(std::max(1, params_.decimation)),
-                      params_.min_range, max_range, [&](size_t, const Eigen::Vector2d& p) {
+  forEachScanEndpoint(scan, static_cast<size_t>(std::max(1, params_.decimation)), params_.min_range,
+                      max_range, [&](size_t, const Eigen::Vector2d& p) {
                         ex_.push_back(p.x());
                         ey_.push_back(p.y());
                       });

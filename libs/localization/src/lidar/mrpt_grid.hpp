@@ -13,9 +13,7 @@ struct OccupancyMap::Grid : mrpt::maps::COccupancyGridMap2D {};
 
 struct MrptGridAccess {
   static mrpt::maps::COccupancyGridMap2D& grid(OccupancyMap& map) { return *map.grid_; }
-  static const mrpt::maps::COccupancyGridMap2D& grid(const OccupancyMap& map) {
-    return *map.grid_;
-  }
+  static const mrpt::maps::COccupancyGridMap2D& grid(const OccupancyMap& map) { return *map.grid_; }
 };
 
 }  // namespace uwbloc::loc

@@ -1,7 +1,5 @@
 #include "uwbloc/localization/lidar/occupancy_map.hpp"
 
-#include "mrpt_grid.hpp"
-
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/maps/COccupancyGridMap2D.h>
@@ -10,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
+
+#include "mrpt_grid.hpp"
 
 namespace uwbloc::loc {
 

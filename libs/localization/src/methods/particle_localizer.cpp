@@ -25,7 +25,8 @@ std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core
                                                   const SwarmPartParams* swarm) {
   std::vector<std::unique_ptr<EpochMeasurement>> measurements;
   if (lidar) {
-    if (!context.map) throw ParamError("this method needs a map: give the manifest's [dataset] map");
+    if (!context.map)
+      throw ParamError("this method needs a map: give the manifest's [dataset] map");
     measurements.push_back(std::make_unique<LidarFieldMeasurement>(*lidar, *context.map));
   }
   if (uwb)

@@ -316,8 +316,8 @@ SmallVec BeetleSwarm::velocity(const Eigen::MatrixXd& x, Eigen::Index i, const S
   return v;
 }
 
-void BeetleSwarm::moveBeetle(Eigen::MatrixXd& x, Eigen::Index i, const Objective& f,
-                             const Box& box, const SmallVec& v, Search& s, Rng& rng) {
+void BeetleSwarm::moveBeetle(Eigen::MatrixXd& x, Eigen::Index i, const Objective& f, const Box& box,
+                             const SmallVec& v, Search& s, Rng& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const SmallVec xi = x.row(i).transpose();
   // Eq. (22)-(24): antennae along V, then a step along V towards the better antenna. The antenna
@@ -451,7 +451,8 @@ std::unique_ptr<Optimizer> makeOptimizer(const std::string& name) {
   if (name == "ga") return std::make_unique<Ga>();
   if (name == "ba") return std::make_unique<Bat>();
   throw std::invalid_argument("unknown optimiser '" + name +
-                              "' (known: bas, ibas, ibas-fixed, ibas-distance-pulls, ibas-paper, ibas-scaled, pso, ga, ba)");
+                              "' (known: bas, ibas, ibas-fixed, ibas-distance-pulls, ibas-paper, "
+                              "ibas-scaled, pso, ga, ba)");
 }
 
 }  // namespace uwbloc::optim

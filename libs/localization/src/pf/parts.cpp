@@ -10,8 +10,7 @@ namespace uwbloc::loc {
 
 // ---------------------------------------------------------------- LiDAR likelihood field
 
-LidarFieldMeasurement::LidarFieldMeasurement(const LidarPartParams& params,
-                                             const OccupancyMap& map)
+LidarFieldMeasurement::LidarFieldMeasurement(const LidarPartParams& params, const OccupancyMap& map)
     : params_(params), field_(map, params.field) {}
 
 bool LidarFieldMeasurement::take(const Event& event, EstimatorStatistics&) {
@@ -262,8 +261,8 @@ void SwarmStep::reweight(ParticleFilter& pf, const EpochFitness& fitness, double
   };
   for (size_t i = 0; i < ps.size(); ++i) {
     const auto r = static_cast<Eigen::Index>(i);
-    ps.log_w[i] += offset(start_(r, 0), start_(r, 1), start_(r, 2)) -
-                   offset(ps.x[i], ps.y[i], ps.theta[i]);
+    ps.log_w[i] +=
+        offset(start_(r, 0), start_(r, 1), start_(r, 2)) - offset(ps.x[i], ps.y[i], ps.theta[i]);
   }
 }
 

@@ -23,7 +23,6 @@ struct HanyangImportParams {
   double tag_height = 1.0;  ///< tag height above the anchors' z datum [m]
 };
 
-
 /// One two-way-ranging exchange of a Hanyang static file (static/{LOS,NLOS}/height_*/Nm.csv):
 /// raw DW1000 timestamps (stored as wrapped signed 32-bit numbers) and the device's distance.
 struct TwrExchange {

@@ -93,7 +93,7 @@ struct ManifestDraft {
   std::optional<double> gt_max_gap;
   std::string map;
   std::string range_features;
-  std::string anchors_csv;          ///< the anchors file; when empty, `anchors` are written inline
+  std::string anchors_csv;  ///< the anchors file; when empty, `anchors` are written inline
   std::vector<uwb::Anchor> anchors;
   std::optional<double> tag_height;
   std::optional<Eigen::Vector2d> lever_arm;

@@ -56,7 +56,7 @@ struct AugmentRequest {
   double map_resolution = 0.05;  ///< for a map built from the scans [m]
   double max_gap = 5.0;          ///< no ranges where reference poses are further apart [s]
   uint64_t seed = 1;
-  bool allow_bad_time = false;   ///< augment a recording whose timestamps have collapsed
+  bool allow_bad_time = false;  ///< augment a recording whose timestamps have collapsed
 };
 
 /// augmentWithUwb() on files: writes augmented.rawlog, anchors.csv, reference.txt,

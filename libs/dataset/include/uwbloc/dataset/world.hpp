@@ -26,8 +26,9 @@ struct LidarParams {
 
 /// A free area `bounds` with occupied `obstacles`, and occupied walls around the border when
 /// `walls` is set.
-loc::OccupancyMap mapFromRectangles(const loc::Rect& bounds, const std::vector<loc::Rect>& obstacles,
-                                    double resolution, bool walls = true);
+loc::OccupancyMap mapFromRectangles(const loc::Rect& bounds,
+                                    const std::vector<loc::Rect>& obstacles, double resolution,
+                                    bool walls = true);
 
 /// Maps the scans taken at known poses (`poses[i]` for `scans[i]`) into a new grid.
 loc::OccupancyMap mapFromScans(const std::vector<const loc::LaserScan*>& scans,

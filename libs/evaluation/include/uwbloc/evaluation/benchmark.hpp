@@ -12,12 +12,12 @@
 namespace uwbloc::eval {
 
 struct BenchmarkOptions {
-  std::string data_dir;                ///< the public datasets ("" : those parts are skipped)
-  std::string project_datasets;        ///< the project's datasets/ folder (manifests, scenarios)
+  std::string data_dir;          ///< the public datasets ("" : those parts are skipped)
+  std::string project_datasets;  ///< the project's datasets/ folder (manifests, scenarios)
   std::string work_dir = "runs/benchmark";  ///< imports and simulations go here
-  int seeds = 5;                       ///< seeds 1..seeds per method
-  std::vector<std::string> methods;    ///< empty: every registered method
-  std::vector<std::string> datasets;   ///< empty: all; else only those whose name contains one
+  int seeds = 5;                            ///< seeds 1..seeds per method
+  std::vector<std::string> methods;         ///< empty: every registered method
+  std::vector<std::string> datasets;        ///< empty: all; else only those whose name contains one
 };
 
 /// One dataset of the benchmark, ready to load.

@@ -7,9 +7,9 @@
 #include <map>
 #include <optional>
 #include <sstream>
-#include <type_traits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace uwbloc::loc {

@@ -23,13 +23,15 @@ namespace uwbloc::loc::graph {
 /// Robust loss on the whitened range residuals.
 enum class RobustLoss { kNone, kHuber, kCauchy };
 constexpr std::array<EnumName<RobustLoss>, 3> enumNames(RobustLoss) {
-  return {{{RobustLoss::kNone, "none"}, {RobustLoss::kHuber, "huber"}, {RobustLoss::kCauchy, "cauchy"}}};
+  return {{{RobustLoss::kNone, "none"},
+           {RobustLoss::kHuber, "huber"},
+           {RobustLoss::kCauchy, "cauchy"}}};
 }
 
 struct RangeGraphParams {
-  double range_sigma = 0.1;     ///< std of a range [m]
-  RobustLoss loss = RobustLoss::kCauchy;  ///< on the whitened range residuals
-  double loss_scale = 2.0;      ///< robust-loss scale, in standard deviations
+  double range_sigma = 0.1;                          ///< std of a range [m]
+  RobustLoss loss = RobustLoss::kCauchy;             ///< on the whitened range residuals
+  double loss_scale = 2.0;                           ///< robust-loss scale, in standard deviations
   Eigen::Vector3d odometry_sigma{0.05, 0.05, 0.02};  ///< per odometry edge [m, m, rad]
   bool estimate_anchors = false;    ///< anchors' x, y as vertices with a prior (z is held)
   double anchor_prior_sigma = 0.5;  ///< [m]
@@ -97,7 +99,6 @@ class RangeGraph {
     int from, to;
     Eigen::Vector3d delta;
     std::optional<Eigen::Matrix3d> sqrt_information;  ///< upper triangular; none: the params'
-
   };
   std::vector<Eigen::Vector3d> poses_;
   std::vector<uwb::Anchor> anchors_;

@@ -43,9 +43,9 @@ template <int N, int M>
 Innovation<M> innovate(const Mat<N, N>& p, const Vec<M>& y, const Mat<M, N>& h,
                        const Mat<M, M>& r) {
   Innovation<M> out;
-  out.y = y;                                    // (1)
-  out.s = h * p * h.transpose() + r;            // (2)
-  out.d2 = y.dot(out.s.ldlt().solve(y));        // (3) y^T S^-1 y
+  out.y = y;                              // (1)
+  out.s = h * p * h.transpose() + r;      // (2)
+  out.d2 = y.dot(out.s.ldlt().solve(y));  // (3) y^T S^-1 y
   return out;
 }
 
@@ -72,8 +72,7 @@ void predictConstantVelocity(Vec<4>& x, Mat<4, 4>& p, double dt, double accel_ps
 
 /// The state [x y vx vy] started from a multilateration fix: the fix's position and covariance,
 /// zero velocity with `velocity_sigma` (1 m/s) of uncertainty.
-void initialiseFromFix(const uwb::Fix& fix, Vec<4>& x, Mat<4, 4>& p,
-                       double velocity_sigma = 1.0);
+void initialiseFromFix(const uwb::Fix& fix, Vec<4>& x, Mat<4, 4>& p, double velocity_sigma = 1.0);
 
 /// The UWB-only pose estimate from a tag track: the robot's position is the tag's minus the lever
 /// arm rotated by `heading` (which the track does not observe: heading_valid = false, variance

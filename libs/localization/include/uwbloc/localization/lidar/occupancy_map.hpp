@@ -55,7 +55,7 @@ class OccupancyMap {
 
  private:
   friend struct MrptGridAccess;  // the MRPT adapters of this library and the simulator
-  struct Grid;  // the MRPT grid (lidar/mrpt_grid.hpp)
+  struct Grid;                   // the MRPT grid (lidar/mrpt_grid.hpp)
   std::unique_ptr<Grid> grid_;
 };
 

@@ -18,16 +18,16 @@
 namespace uwbloc::loc {
 
 struct GraphSmootherParams {
-  RangeFrontEndParams front;               ///< range checks; sigma is the range edges' std
+  RangeFrontEndParams front;  ///< range checks; sigma is the range edges' std
   graph::RobustLoss loss = graph::RobustLoss::kCauchy;  ///< on ranges
-  double loss_scale = 2.0;                 ///< in standard deviations
-  double odom_sigma_xy = 0.01;             ///< per increment [m] ...
-  double odom_sigma_xy_per_m = 0.05;       ///< ... plus this per metre moved
-  double odom_sigma_theta = 0.005;         ///< per increment [rad] ...
-  double odom_sigma_theta_per_rad = 0.05;  ///< ... plus this per radian turned
-  bool estimate_bias = false;              ///< a range bias per anchor
-  bool estimate_anchors = false;           ///< anchors' x, y with a prior
-  double anchor_prior = 0.5;               ///< [m]
+  double loss_scale = 2.0;                              ///< in standard deviations
+  double odom_sigma_xy = 0.01;                          ///< per increment [m] ...
+  double odom_sigma_xy_per_m = 0.05;                    ///< ... plus this per metre moved
+  double odom_sigma_theta = 0.005;                      ///< per increment [rad] ...
+  double odom_sigma_theta_per_rad = 0.05;               ///< ... plus this per radian turned
+  bool estimate_bias = false;                           ///< a range bias per anchor
+  bool estimate_anchors = false;                        ///< anchors' x, y with a prior
+  double anchor_prior = 0.5;                            ///< [m]
   int iterations = 100;
   std::string front_end;          ///< "" or a method spec whose estimates become vertices
   bool landmarks = true;          ///< front-end mode: LiDAR corner landmarks as vertices

@@ -10,13 +10,14 @@
 namespace uwbloc::loc {
 
 struct MultilaterationParams {
-  RangeFrontEndParams front;   ///< range checks and gates
-  AutoDouble epoch_window;  ///< ranges within this span form one epoch [s]; auto: the data's rate
+  RangeFrontEndParams front;  ///< range checks and gates
+  AutoDouble epoch_window;    ///< ranges within this span form one epoch [s]; auto: the data's rate
 
   template <class V>
   void visit(V&& v) {
     front.visit(v);
-    v("window", epoch_window, "epoch window [s], or auto (one round of ranges from the data's rate)");
+    v("window", epoch_window,
+      "epoch window [s], or auto (one round of ranges from the data's rate)");
   }
 };
 

@@ -22,7 +22,7 @@ namespace uwbloc::loc {
 
 struct UwbEkfParams {
   RangeFrontEndParams front;
-  AutoDouble epoch_window;  ///< epoch window of the initial fix [s]; auto: the data's rate
+  AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 9.0;           ///< chi-square gate on one range innovation (3 sigma, 1 dof)

@@ -29,7 +29,8 @@ struct UwbKfParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
-    v("window", epoch_window, "epoch window [s], or auto (one round of ranges from the data's rate)");
+    v("window", epoch_window,
+      "epoch window [s], or auto (one round of ranges from the data's rate)");
     v("solver", solver, "multilateration solver for the measurement: ls, gn, chan");
     v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");

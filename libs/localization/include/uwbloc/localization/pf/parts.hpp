@@ -32,13 +32,13 @@ constexpr std::array<EnumName<InitMode>, 2> enumNames(InitMode) {
 
 /// The filter itself: particle count, resampling strategy, motion noise and start.
 struct ParticleCoreParams {
-  int particles = 300;                             ///< n
+  int particles = 300;  ///< n
   ResamplerKind resampler = ResamplerKind::kSystematic;
-  double ess = 0.5;                                ///< resample when ESS / N < this
-  MotionNoise motion;                              ///< odometry sampling noise
-  InitMode init = InitMode::kTracking;             ///< box around the start pose, or global
-  double init_xy = 0.5;                            ///< tracking box half-width [m]
-  double init_theta_deg = 20.0;                    ///< tracking box half-width [deg]
+  double ess = 0.5;                     ///< resample when ESS / N < this
+  MotionNoise motion;                   ///< odometry sampling noise
+  InitMode init = InitMode::kTracking;  ///< box around the start pose, or global
+  double init_xy = 0.5;                 ///< tracking box half-width [m]
+  double init_theta_deg = 20.0;         ///< tracking box half-width [deg]
   int init_n = 0;  ///< particles at the start, kept until the cloud converges (0: n)
 
   template <class V>
@@ -62,7 +62,7 @@ struct ParticleCoreParams {
 /// The LiDAR measurement model: the map's likelihood field, and the corner-landmark map.
 struct LidarPartParams {
   LikelihoodFieldParams field;
-  bool landmarks = false;       ///< build and save a corner-landmark map along the run
+  bool landmarks = false;        ///< build and save a corner-landmark map along the run
   double landmark_sigma = 0.05;  ///< std of a corner observation [m]
 
   template <class V>
@@ -91,11 +91,11 @@ constexpr std::array<EnumName<NlosAction>, 2> enumNames(NlosAction) {
 
 /// The UWB measurement model: range checks, the range likelihood and the NLOS test.
 struct UwbPartParams {
-  RangeFrontEndParams front;            ///< range checks; sigma is the range likelihood's std
-  NlosTest nlos = NlosTest::kPose;      ///< NLOS test
-  double nlos_k = 3.0;                  ///< gate width in standard deviations
+  RangeFrontEndParams front;        ///< range checks; sigma is the range likelihood's std
+  NlosTest nlos = NlosTest::kPose;  ///< NLOS test
+  double nlos_k = 3.0;              ///< gate width in standard deviations
   NlosAction nlos_action = NlosAction::kReject;
-  double downweight = 5.0;              ///< sigma factor for down-weighted ranges
+  double downweight = 5.0;  ///< sigma factor for down-weighted ranges
   /// The NLOS test judges ranges against the filter's pose; when most of an epoch's ranges (at
   /// least 2) fail it this many epochs in a row, the pose is more likely wrong than the ranges,
   /// and the test is suspended (the ranges are used) until they agree with the pose again.
@@ -129,11 +129,11 @@ constexpr std::array<EnumName<SwarmWeights>, 3> enumNames(SwarmWeights) {
 
 /// The PF-IBAS posterior step (the paper's §2.1.3 with the changes the README measures).
 struct SwarmPartParams {
-  int iterations = 1;          ///< IBAS iterations per epoch (the paper: one)
-  double step = 0.1;           ///< IBAS initial step [m, rad] (the paper's 0.1)
-  bool move_theta = false;     ///< the swarm moves the heading too (else x, y only)
-  double min_spread = 0.02;    ///< inject diversity below this swarm spread [m]
-  bool resample = true;        ///< after the swarm, also resample when ESS/N < ess
+  int iterations = 1;        ///< IBAS iterations per epoch (the paper: one)
+  double step = 0.1;         ///< IBAS initial step [m, rad] (the paper's 0.1)
+  bool move_theta = false;   ///< the swarm moves the heading too (else x, y only)
+  double min_spread = 0.02;  ///< inject diversity below this swarm spread [m]
+  bool resample = true;      ///< after the swarm, also resample when ESS/N < ess
   SwarmWeights weights = SwarmWeights::kSequential;
 
   template <class V>
@@ -223,10 +223,10 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   UwbPartParams params_;
   RangeFrontEnd front_;
   std::shared_ptr<const OccupancyMap> map_;
-  std::string nlos_reason_;  ///< "nlos_<test>", built once
+  std::string nlos_reason_;                  ///< "nlos_<test>", built once
   std::vector<AcceptedRange> epoch_, used_;  ///< used_: the clean ones, for the swarm's fitness
-  int epoch_flagged_ = 0;  ///< ranges of the open epoch that failed the NLOS test
-  int nlos_streak_ = 0;    ///< epochs in a row in which most ranges failed it
+  int epoch_flagged_ = 0;                    ///< ranges of the open epoch that failed the NLOS test
+  int nlos_streak_ = 0;                      ///< epochs in a row in which most ranges failed it
 };
 
 /// Bayes weights, then resampling by the filter's strategy when ESS / N falls below its
