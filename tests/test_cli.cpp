@@ -1,6 +1,7 @@
 // The command line on bad input: a non-zero exit and a message naming the file (and line).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -152,4 +153,54 @@ TEST(Cli, AMethodWithoutAnEstimateIsFlaggedAndStrictExitsThree) {
       << lenient.output;
   const auto strict = runCli("compare -d " + manifest + " -m uwb-ls --strict -o " + out);
   EXPECT_EQ(strict.code, 3) << strict.output;
+}
+
+TEST(Cli, RunDirectoryIsReplacedWholeAndLocked) {
+  const auto dir = uwbloc::test::scratchDir();
+  const auto out = (dir / "run").string();
+  // A re-run with other methods leaves no file of the first run behind.
+  ASSERT_EQ(runCli("compare -m uwb-ls,uwb-gn -o " + out).code, 0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "run" / "uwb-gn.tum"));
+  ASSERT_EQ(runCli("compare -m uwb-kf -o " + out).code, 0);
+  EXPECT_FALSE(std::filesystem::exists(dir / "run" / "uwb-gn.tum"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "run" / "uwb-kf.tum"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "run.lock"));
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+  // A live process holds the lock (this test's own): refused, naming it; the run is untouched.
+  writeText(dir / "run.lock", std::to_string(getpid()) + "\n");
+  expectFailureMentioning(runCli("compare -m uwb-gn -o " + out),
+                          {"another run", std::to_string(getpid()), "run.lock"});
+  EXPECT_TRUE(std::filesystem::exists(dir / "run" / "uwb-kf.tum"));
+  // The lock of a process that is gone is taken over.
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  waitpid(child, nullptr, 0);
+  writeText(dir / "run.lock", std::to_string(child) + "\n");
+  EXPECT_EQ(runCli("compare -m uwb-gn -o " + out).code, 0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "run" / "uwb-gn.tum"));
+}
+
+TEST(Cli, ManifestNameCannotMoveTheOutput) {
+  const auto dir = uwbloc::test::scratchDir();
+  std::vector<uwbloc::loc::Event> events;
+  for (int k = 0; k < 60; ++k) {
+    uwbloc::uwb::Range r;
+    r.t = 0.1 * k;
+    r.anchor_id = 1 + k % 3;
+    r.range = 4.0;
+    events.emplace_back(r);
+  }
+  uwbloc::data::writeRawlog((dir / "n.rawlog").string(), events);
+  writeText(dir / "anchors.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2\n3,0,6,2\n");
+  const auto manifest = writeText(dir / "m.ini",
+                                  "[dataset]\nname = ../../escaped\nrawlog = n.rawlog\n[anchors]\n"
+                                  "anchors_csv = anchors.csv\n");
+  const auto cwd = std::filesystem::current_path();
+  std::filesystem::current_path(dir);
+  const auto r = runCli("compare -d " + manifest + " -m uwb-ls");
+  std::filesystem::current_path(cwd);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "runs" / "______escaped" / "metrics.json")) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir.parent_path().parent_path() / "escaped"));
 }

@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -134,6 +135,14 @@ int RunMethodsCommand::run() {
     throw data::InputError(ds.manifest.rawlog +
                            ": refusing to score a recording whose timestamps have collapsed "
                            "(--allow-bad-time scores it anyway)");
+  // The run directory: --out, or runs/<dataset name> with the name reduced to a safe file name
+  // (a manifest's name cannot point the output elsewhere). Locked before any work starts.
+  std::string safe_name;
+  for (char c : ds.name)
+    safe_name += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+  if (safe_name.empty()) safe_name = "dataset";
+  const std::string out = opt.out.empty() ? "runs/" + safe_name : opt.out;
+  const eval::RunDirectoryLock lock(out);
   const bool all = compare_ && methods_ == "all";
   const auto methods = compare_ ? splitMethods(methods_) : std::vector<std::string>{methods_};
   std::vector<eval::MethodSummary> summaries;
@@ -141,7 +150,6 @@ int RunMethodsCommand::run() {
     summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed,
                                              extraParams(loc::MethodSpec::parse(m).name, opt),
                                              printProgress));
-  const std::string out = opt.out.empty() ? "runs/" + ds.name : opt.out;
   const eval::DatasetBounds bounds = eval::computeBounds(ds);
   eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
   std::cout << eval::formatTable(ds, summaries, bounds);

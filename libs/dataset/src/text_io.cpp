@@ -1,5 +1,8 @@
 #include "uwbloc/dataset/text_io.hpp"
 
+#include <unistd.h>
+
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -76,8 +79,13 @@ void ensureDirectory(const std::string& path) {
   if (ec) throwInputError(path, 0, "cannot create folder: " + ec.message());
 }
 
+std::string uniqueSuffix() {
+  static std::atomic<unsigned long> counter{0};
+  return "." + std::to_string(::getpid()) + "." + std::to_string(counter++) + ".tmp";
+}
+
 void writeFileAtomic(const std::string& path, const std::string& contents) {
-  const std::string tmp = path + ".tmp";
+  const std::string tmp = path + uniqueSuffix();
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throwInputError(path, 0, "cannot write file");

@@ -1,8 +1,15 @@
 #include "uwbloc/evaluation/report.hpp"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -258,9 +265,82 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
   return out.str();
 }
 
+namespace {
+
+// Replaces `target` by `fresh`: an atomic exchange of the two directories when `target` exists
+// (Linux renameat2 RENAME_EXCHANGE), then the old one is removed; a rename otherwise.
+void replaceDirectory(const fs::path& fresh, const fs::path& target) {
+  std::error_code ec;
+  if (fs::exists(target, ec)) {
+    if (::renameat2(AT_FDCWD, fresh.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE) != 0)
+      throw data::InputError(target.string() +
+                             ": cannot replace the run directory: " + std::strerror(errno));
+    fs::remove_all(fresh, ec);  // now the previous run
+    return;
+  }
+  fs::rename(fresh, target, ec);
+  if (ec)
+    throw data::InputError(target.string() + ": cannot create the run directory: " + ec.message());
+}
+
+bool processAlive(long pid) {
+  return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM);
+}
+
+}  // namespace
+
+RunDirectoryLock::RunDirectoryLock(const std::string& out_dir) {
+  const fs::path dir = fs::path(out_dir).lexically_normal();
+  if (dir.filename().empty()) throw data::InputError(out_dir + ": not a directory name");
+  std::error_code ec;
+  if (!dir.parent_path().empty()) fs::create_directories(dir.parent_path(), ec);
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw data::InputError(out_dir + ": exists and is not a directory");
+  path_ = dir.string() + ".lock";
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
+    if (fd >= 0) {
+      const std::string pid = std::to_string(::getpid()) + "\n";
+      const bool ok = ::write(fd, pid.data(), pid.size()) == static_cast<ssize_t>(pid.size());
+      ::close(fd);
+      if (!ok) break;
+      return;
+    }
+    if (errno != EEXIST)
+      throw data::InputError(path_ + ": cannot create the lock (is " + dir.parent_path().string() +
+                             " writable?): " + std::strerror(errno));
+    long holder = 0;
+    std::ifstream(path_) >> holder;
+    if (processAlive(holder))
+      throw data::InputError(out_dir + ": another run (process " + std::to_string(holder) +
+                             ") is writing this run directory; lock file " + path_);
+    fs::remove(path_, ec);  // a stale lock: its process is gone
+  }
+  throw data::InputError(path_ + ": cannot take the lock");
+}
+
+RunDirectoryLock::~RunDirectoryLock() {
+  std::error_code ec;
+  if (!path_.empty()) fs::remove(path_, ec);
+}
+
 void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
                        const std::vector<MethodSummary>& methods, const RunInfo& info) {
-  data::ensureDirectory(out_dir);
+  const fs::path target = fs::path(out_dir).lexically_normal();
+  const fs::path fresh = target.string() + data::uniqueSuffix();
+  data::ensureDirectory(fresh.string());
+  try {
+    writeRunFiles(fresh.string(), dataset, methods, info);
+    replaceDirectory(fresh, target);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(fresh, ec);
+    throw;
+  }
+}
+
+void writeRunFiles(const std::string& out_dir, const data::Dataset& dataset,
+                   const std::vector<MethodSummary>& methods, const RunInfo& info) {
   const fs::path dir(out_dir);
   for (const auto& m : methods) {
     data::writeFileAtomic((dir / (fileLabel(m.spec) + ".tum")).string(),

@@ -24,7 +24,11 @@ const char* timestampProblem(double t);
 /// Creates a folder (and its parents), or throws InputError naming it.
 void ensureDirectory(const std::string& path);
 
-/// Writes `contents` to `path` atomically: a temporary file beside it, then a rename.
+/// ".<pid>.<counter>.tmp": a suffix no other writer, in this process or another, uses.
+std::string uniqueSuffix();
+
+/// Writes `contents` to `path` atomically: a temporary file beside it (uniquely named), then a
+/// rename.
 void writeFileAtomic(const std::string& path, const std::string& contents);
 
 }  // namespace uwbloc::data

@@ -47,8 +47,29 @@ struct RunInfo {
   DatasetBounds bounds;
 };
 
-/// Writes every output file of a run into `out_dir` (created if needed).
+/// Holds `<out_dir>.lock` (beside the run directory) for as long as it lives, so that a second run
+/// into the same directory is refused with the holder's process id. A lock whose process is gone
+/// is taken over. Creating it also proves that the directory's parent is writable, before any
+/// work starts. Throws data::InputError.
+class RunDirectoryLock {
+ public:
+  explicit RunDirectoryLock(const std::string& out_dir);
+  ~RunDirectoryLock();
+  RunDirectoryLock(const RunDirectoryLock&) = delete;
+  RunDirectoryLock& operator=(const RunDirectoryLock&) = delete;
+
+ private:
+  std::string path_;
+};
+
+/// Writes every output file of a run as a whole: into a temporary directory beside `out_dir`,
+/// which then replaces `out_dir` (an atomic exchange when it exists). A failed or interrupted run
+/// leaves the previous directory as it was; files of methods no longer run do not survive.
 void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
                        const std::vector<MethodSummary>& methods, const RunInfo& info);
+
+/// The run's files, written into an existing folder `out_dir` (writeRunDirectory's inner part).
+void writeRunFiles(const std::string& out_dir, const data::Dataset& dataset,
+                   const std::vector<MethodSummary>& methods, const RunInfo& info);
 
 }  // namespace uwbloc::eval
