@@ -254,3 +254,35 @@ TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
   EXPECT_GT(automatic.metrics.coverage, 0.9);
   EXPECT_LT(automatic.metrics.rmse_2d, 0.4);  // the tag moves 0.26 m during one round
 }
+
+TEST(Registry, ParametersOutsideTheirLimitsAreErrors) {
+  // The inputs that used to run out of memory, hang or score nonsense.
+  loc::EstimatorContext ctx;
+  ctx.anchors = {{1, {0, 0, 0}}};
+  ctx.initial_pose = Eigen::Vector3d::Zero();
+  for (const auto& [spec, key] : std::vector<std::pair<std::string, std::string>>{
+           {"uwb-pf:n=1000000000", "'n'"},
+           {"uwb-pf:a3=1e308", "'a3'"},
+           {"lidar-icp:min_dist=-1", "'min_dist'"},
+           {"uwb-kf:q=-1", "'q'"},
+           {"uwb-ekf:sigma=0", "'sigma'"},
+           {"uwb-ekf:sigma=inf", "'sigma'"},
+           {"uwb-gn:window=-2", "'window'"}}) {
+    try {
+      loc::Registry::builtin().create(spec, ctx);
+      ADD_FAILURE() << spec << " was accepted";
+    } catch (const loc::ParamError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Registry, EveryDefaultIsInsideItsLimits) {
+  for (const auto& m : loc::Registry::builtin().methods())
+    for (const auto& p : m.defaults) {
+      char* end = nullptr;
+      const double v = std::strtod(p.value.c_str(), &end);
+      if (end == p.value.c_str() || *end != '\0') continue;  // not a number (enum, spec, auto)
+      EXPECT_NO_THROW(loc::checkLimit(m.name, p.key, v)) << m.name << " " << p.key << "=" << v;
+    }
+}

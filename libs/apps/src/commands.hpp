@@ -106,6 +106,9 @@ class MethodsCommand : public Command {
  public:
   void declare(CLI::App& parser) override;
   int run() override;
+
+ private:
+  bool limits_ = false;
 };
 
 }  // namespace uwbloc::apps

@@ -48,9 +48,25 @@ int BenchOptimizersCommand::run() {
 void MethodsCommand::declare(CLI::App& parser) {
   subcommand_ =
       parser.add_subcommand("methods", "List the methods with their parameters and defaults");
+  subcommand_->add_flag("--limits", limits_,
+                        "print the one table of limits every numeric parameter is checked "
+                        "against, and the command-line limits");
 }
 
 int MethodsCommand::run() {
+  if (limits_) {
+    std::cout << "| parameter | range | why |\n|---|---|---|\n";
+    for (const auto& l : loc::paramLimits())
+      std::printf("| `%s` | %s%g, %g] | %s |\n", l.key, l.min_exclusive ? "(" : "[", l.min, l.max,
+                  l.why);
+    std::cout << "| `--repeat` | [1, 1000] | runs per method |\n"
+                 "| `--seeds` (benchmark) | [1, 100] | |\n"
+                 "| `--runs`, `--population`, `--iterations` (bench-optimizers) | [1, 1e5], "
+                 "[1, 1e5], [1, 1e6] | |\n"
+                 "| `--dim` (bench-optimizers) | [1, 32] | |\n"
+                 "Every other numeric parameter must be finite.\n";
+    return kSuccess;
+  }
   for (const auto& m : loc::Registry::builtin().methods()) {
     std::cout << m.name << "\n    " << m.description << "\n";
     for (const auto& p : m.defaults)

@@ -149,12 +149,35 @@ std::string formatValue(const T& v) {
 inline std::string formatValue(bool v) { return v ? "1" : "0"; }
 }  // namespace detail
 
+/// The range a numeric parameter must lie in, by key: one table for every method (limits.cpp),
+/// printed by `uwbloc methods --limits`.
+struct ParamLimit {
+  const char* key;
+  double min, max;
+  bool min_exclusive;  ///< the value must be above min, not equal to it
+  const char* why;
+};
+const std::vector<ParamLimit>& paramLimits();
+
+/// Throws ParamError when `value` is not finite or outside its key's limits (context names the
+/// method). Values of other types have nothing to check.
+void checkLimit(const std::string& context, const std::string& key, double value);
+inline void checkLimit(const std::string& context, const std::string& key, int value) {
+  checkLimit(context, key, static_cast<double>(value));
+}
+inline void checkLimit(const std::string& context, const std::string& key, const AutoDouble& v) {
+  if (v.value) checkLimit(context, key, *v.value);
+}
+template <class T>
+void checkLimit(const std::string&, const std::string&, const T&) {}
+
 /// Loads every field a Params struct visits from `set`, then rejects unknown keys.
 template <class P>
 void loadParams(ParamSet& set, P& params) {
   std::vector<std::string> known;
   params.visit([&](const char* key, auto& field, const char*) {
     set.read(key, field);
+    checkLimit(set.context(), key, field);
     known.emplace_back(key);
   });
   set.checkAllUsed(known);

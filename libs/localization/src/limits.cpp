@@ -1,0 +1,92 @@
+// The one table of parameter limits. A limit keeps a value where the methods are defined and
+// where their work stays bounded: particle counts and iterations that fit in memory and time,
+// noise that is positive, gates that exist.
+#include <cmath>
+#include <cstdio>
+
+#include "uwbloc/localization/params.hpp"
+
+namespace uwbloc::loc {
+
+const std::vector<ParamLimit>& paramLimits() {
+  static const std::vector<ParamLimit> limits = {
+      {"n", 1, 1e6, false, "particles: memory and time grow with them"},
+      {"init_n", 0, 1e6, false, "particles at the start"},
+      {"a1", 0, 10, false, "odometry noise"},
+      {"a2", 0, 10, false, "odometry noise"},
+      {"a3", 0, 10, false, "odometry noise"},
+      {"a4", 0, 10, false, "odometry noise"},
+      {"ess", 0, 1, false, "a fraction of the particle count"},
+      {"init_xy", 0, 1e3, false, "[m]"},
+      {"init_theta", 0, 180, false, "[deg]"},
+      {"lf_sigma", 0, 100, true, "[m]"},
+      {"lf_zhit", 0, 1, false, "a weight"},
+      {"lf_zrand", 0, 1, false, "a weight"},
+      {"lf_decimation", 1, 1e5, false, "rays"},
+      {"lf_max_dist", 0, 100, true, "[m]"},
+      {"lf_max_range", 0, 1e4, true, "[m]"},
+      {"landmark_sigma", 0, 100, true, "[m]"},
+      {"sigma", 0, 100, true, "range noise [m]: zero would make every likelihood infinite"},
+      {"max_range", 0, 1e5, true, "[m]"},
+      {"iq_n", 1, 32, false, "the increment queue holds at most 32"},
+      {"iq_zeta", 0, 1e3, false, ""},
+      {"iq_vmax", 0, 1e3, false, "[m/s]"},
+      {"iq_floor", 0, 1e3, false, "[m]"},
+      {"nlos_k", 0, 100, true, "[std]"},
+      {"downweight", 1, 1e6, false, "a sigma factor"},
+      {"nlos_suspend", 0, 1e6, false, "epochs"},
+      {"ibas_iters", 1, 100, false, "swarm iterations per epoch"},
+      {"ibas_step", 0, 1e3, true, "[m, rad]"},
+      {"min_spread", 0, 1e3, false, "[m]"},
+      {"q", 0, 1e6, true, "process noise density: negative would make P indefinite"},
+      {"tau", 0, 1e6, false, "[s]"},
+      {"gate", 0, 1e6, true, "chi-square threshold"},
+      {"max_gated", 1, 1e6, false, ""},
+      {"readmit", 0, 1e6, false, ""},
+      {"readmit_tol", 0, 1e3, false, "[m]"},
+      {"init_residual", 0, 1e3, true, "[m]"},
+      {"window", 0, 1e4, false, "[s] (per-epoch methods) or vertices (graph)"},
+      {"loss_scale", 0, 1e3, true, "[std]"},
+      {"odom_xy", 0, 1e3, true, "[m]"},
+      {"odom_xy_per_m", 0, 1e3, false, ""},
+      {"odom_th", 0, 1e3, true, "[rad]"},
+      {"odom_th_per_rad", 0, 1e3, false, ""},
+      {"anchor_prior", 0, 1e3, true, "[m]"},
+      {"iterations", 1, 1e5, false, "solver iterations"},
+      {"landmark_min_obs", 1, 1e6, false, ""},
+      {"icp_xy", 0, 1e3, true, "[m]"},
+      {"icp_th", 0, 1e3, true, "[rad]"},
+      {"prior_min_xy", 0, 1e3, true, "[m]"},
+      {"prior_min_theta", 0, 1e3, true, "[rad]"},
+      {"decimation", 1, 1e5, false, "rays"},
+      {"min_range", 0, 1e4, false, "[m]"},
+      {"min_dist", 0, 1e3, true, "[m]: ICP's matching distance"},
+      {"kf_dist", 0, 1e4, false, "[m]"},
+      {"kf_angle", 0, 360, false, "[deg]"},
+      {"iters", 1, 1e4, false, "ICP iterations"},
+      {"alfa", 0, 1, true, "ICP's distance reduction factor"},
+      {"dist", 0, 1e3, true, "[m]"},
+      {"ang", 0, 10, true, "[rad]"},
+      {"min_goodness", 0, 1, false, ""},
+      {"heading_offset", -10, 10, false, "[rad]"},
+  };
+  return limits;
+}
+
+void checkLimit(const std::string& context, const std::string& key, double value) {
+  char buf[160];
+  if (!std::isfinite(value))
+    throw ParamError(context + ": parameter '" + key + "' must be a finite number");
+  for (const auto& l : paramLimits()) {
+    if (key != l.key) continue;
+    const bool below = l.min_exclusive ? !(value > l.min) : !(value >= l.min);
+    if (below || !(value <= l.max)) {
+      std::snprintf(buf, sizeof buf, "= %.6g must be in %s%g, %g]", value,
+                    l.min_exclusive ? "(" : "[", l.min, l.max);
+      throw ParamError(context + ": parameter '" + key + "' " + buf +
+                       (l.why[0] ? std::string(" (") + l.why + ")" : ""));
+    }
+  }
+}
+
+}  // namespace uwbloc::loc
