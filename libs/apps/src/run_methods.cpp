@@ -54,6 +54,30 @@ loc::ParamSet extraParams(const std::string& method_name, const RunOptions& opt)
   return extra;
 }
 
+// --set and --config name methods by their registry name: a name that is no method is a typo
+// that would otherwise be ignored without a word.
+void checkMethodNames(const RunOptions& opt) {
+  const auto& registry = loc::Registry::builtin();
+  auto known = [&](const std::string& name) { return registry.find(name) != nullptr; };
+  std::string names;
+  for (const auto& n : registry.names()) names += (names.empty() ? "" : ", ") + n;
+  if (!opt.config.empty())
+    for (const auto& section : data::IniFile::load(opt.config).sections())
+      if (!known(section))
+        throw loc::ParamError(opt.config + ": section [" + section +
+                              "] is not a method (known: " + names + ")");
+  for (const auto& s : opt.sets) {
+    const auto eq = s.find('=');
+    const auto dot = s.rfind('.', eq);
+    if (eq == std::string::npos || dot == std::string::npos)
+      throw loc::ParamError("--set expects method.key=value, got " + loc::quoteToken(s));
+    if (!known(s.substr(0, dot)))
+      throw loc::ParamError("--set " + loc::quoteToken(s) + ": " +
+                            loc::quoteToken(s.substr(0, dot)) + " is not a method (known: " +
+                            names + ")");
+  }
+}
+
 void printProgress(double fraction, const std::string& label) {
   const bool tty = isatty(fileno(stderr));
   std::fprintf(stderr, "%s[%s] %3.0f%%%s", tty ? "\r" : "", label.c_str(), 100.0 * fraction,
@@ -102,6 +126,9 @@ void RunMethodsCommand::declare(CLI::App& parser) {
   cmd->add_option("--config", opt.config,
                   "INI file with one [method-name] section of parameters per method");
   cmd->add_option("--set", opt.sets, "override one parameter: method.key=value (repeatable)");
+  cmd->add_flag("--allow-partial-reference", opt.allow_partial_reference,
+                "score against a reference that covers under half of the recording (a loud "
+                "warning instead of an error)");
   cmd->add_flag("--strict", opt.strict,
                 "exit with code 3 when a method produced no estimate or covers under half of the "
                 "ground truth");
@@ -126,10 +153,16 @@ void RunMethodsCommand::declare(CLI::App& parser) {
 
 int RunMethodsCommand::run() {
   const RunOptions& opt = options_;
+  checkMethodNames(opt);
   const std::string data_dir = data::resolveDataDir(opt.data_dir);
   const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);
   std::fprintf(stderr, "Loading %s\n", manifest.c_str());
-  const data::Dataset ds = data::loadDataset(manifest, data_dir);
+  data::Dataset ds = data::loadDataset(manifest, data_dir);
+  if (const auto w = data::referenceCoverageWarning(ds)) {
+    if (!opt.allow_partial_reference)
+      throw data::InputError(*w + " (--allow-partial-reference scores it anyway)");
+    ds.warnings.push_back(*w);
+  }
   for (const auto& w : ds.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (ds.collapsed_time && !opt.allow_bad_time)
     throw data::InputError(ds.manifest.rawlog +

@@ -107,6 +107,20 @@ std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& e
          " messages (written with too few digits?); results from it cannot be trusted";
 }
 
+std::optional<std::string> referenceCoverageWarning(const Dataset& ds) {
+  if (ds.ground_truth.empty() || ds.events.empty()) return std::nullopt;
+  const double t0 = ds.start_time, t1 = ds.end_time;
+  const double g0 = ds.ground_truth.front().t, g1 = ds.ground_truth.back().t;
+  const double overlap = std::max(0.0, std::min(t1, g1) - std::max(t0, g0));
+  const double span = t1 - t0;
+  if (span <= 0.0 || overlap >= 0.5 * span) return std::nullopt;
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "%s: the reference (%.3f..%.3f s) covers %.0f %% of the recording (%.3f..%.3f s)",
+                ds.manifest.ground_truth.c_str(), g0, g1, 100.0 * overlap / span, t0, t1);
+  return std::string(buf);
+}
+
 std::string formatRangeFeatures(const std::vector<loc::Event>& events) {
   std::string out = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
   char buf[160];

@@ -1,5 +1,6 @@
 #include "uwbloc/dataset/ini_file.hpp"
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -32,6 +33,7 @@ std::string stripComment(const std::string& s) {
 }  // namespace
 
 IniFile IniFile::load(const std::string& path) {
+  requireRegularFile(path);
   std::ifstream in(path);
   if (!in) throwInputError(path, 0, "cannot open file");
   std::stringstream buffer;
@@ -111,7 +113,11 @@ int IniFile::lineOf(const std::string& section, const std::string& key) const {
 double IniFile::getDouble(const std::string& section, const std::string& key) const {
   const auto v = get(section, key);
   if (!v) throwInputError(path_, 0, "missing key '" + key + "' in section [" + section + "]");
-  return parseNumber(*v, path_, lineOf(section, key), "[" + section + "] " + key);
+  const double x = parseNumber(*v, path_, lineOf(section, key), "[" + section + "] " + key);
+  if (!std::isfinite(x))
+    throwInputError(path_, lineOf(section, key),
+                    "[" + section + "] " + key + ": expected a finite number, got " + *v);
+  return x;
 }
 
 double IniFile::getDouble(const std::string& section, const std::string& key,

@@ -99,9 +99,13 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
     if (f.size() != 4)
       throwInputError(path, line, "expected 4 fields 'id,x,y,z', got " + std::to_string(f.size()));
     uwb::Anchor a;
-    a.id = static_cast<int>(parseNumber(f[0], path, line, "id"));
+    const double id = parseNumber(f[0], path, line, "id");
+    if (!(std::abs(id) < 1e9) || id != std::floor(id))
+      throwInputError(path, line, "anchor id must be an integer, got " + f[0]);
+    a.id = static_cast<int>(id);
     a.position << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
         parseNumber(f[3], path, line, "z");
+    if (!a.position.allFinite()) throwInputError(path, line, "anchor coordinates must be finite");
     if (uwb::findAnchor(anchors, a.id))
       throwInputError(path, line, "duplicate anchor id " + std::to_string(a.id));
     anchors.push_back(a);

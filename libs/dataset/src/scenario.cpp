@@ -187,6 +187,22 @@ void readWorld(const IniFile& ini, const std::string& path, Scenario& s) {
   }
   if (!s.obstacles.empty() && !s.bounds)
     throwInputError(path, 0, "[world] obstacles need 'bounds = xmin ymin xmax ymax'");
+  // Limits that keep the grid in memory: resolution 1 mm .. 10 m, a world of at most 10 km a
+  // side and 1e8 cells.
+  if (!(s.map_resolution >= 1e-3 && s.map_resolution <= 10.0))
+    throwInputError(path, ini.lineOf("world", "resolution"),
+                    "[world] resolution must be in [0.001, 10] m");
+  if (s.bounds) {
+    const auto& b = *s.bounds;
+    const double w = b.xmax - b.xmin, h = b.ymax - b.ymin;
+    if (!(w > 0 && h > 0 && w <= 1e4 && h <= 1e4 && std::abs(b.xmin) <= 1e5 &&
+          std::abs(b.ymin) <= 1e5))
+      throwInputError(path, ini.lineOf("world", "bounds"),
+                      "[world] bounds must span (0, 10 000] m each way, within 100 km of the origin");
+    if (w * h / (s.map_resolution * s.map_resolution) > 1e8)
+      throwInputError(path, ini.lineOf("world", "bounds"),
+                      "[world] bounds / resolution give over 1e8 cells");
+  }
 }
 
 // [anchors]: anchor_<id> = x y z.
@@ -269,6 +285,8 @@ void readLidar(const IniFile& ini, const std::string& path, Scenario& s) {
     double rays = s.lidar.params.rays, fov_deg = s.lidar.params.fov * 180.0 / M_PI;
     readDouble(ini, "lidar", "rays", rays);
     readDouble(ini, "lidar", "fov_deg", fov_deg);
+    if (!(rays >= 1 && rays <= 1e5))
+      throwInputError(path, ini.lineOf("lidar", "rays"), "[lidar] rays must be in [1, 100000]");
     s.lidar.params.rays = static_cast<int>(rays);
     s.lidar.params.fov = fov_deg * M_PI / 180.0;
     readDouble(ini, "lidar", "min_range", s.lidar.params.min_range);

@@ -1,5 +1,7 @@
 #include "uwbloc/dataset/text_io.hpp"
 
+#include "uwbloc/localization/params.hpp"
+
 #include <unistd.h>
 
 #include <atomic>
@@ -22,8 +24,16 @@ void throwInputError(const std::string& file, int line, const std::string& messa
   throw InputError(out.str());
 }
 
+void requireRegularFile(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throwInputError(path, 0, "file not found");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throwInputError(path, 0, "not a regular file (a directory, FIFO or device is not read)");
+}
+
 void forEachRow(const std::string& path,
                 const std::function<void(int, const std::vector<std::string>&)>& on_line) {
+  requireRegularFile(path);
   std::ifstream in(path);
   if (!in) throwInputError(path, 0, "cannot open file");
   std::string line;
@@ -60,7 +70,7 @@ double parseNumber(const std::string& text, const std::string& file, int line,
   char* end = nullptr;
   const double v = std::strtod(text.c_str(), &end);
   if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE)
-    throwInputError(file, line, "field '" + field + "': expected a number, got '" + text + "'");
+    throwInputError(file, line, "field '" + field + "': expected a number, got " + loc::quoteToken(text));
   return v;
 }
 

@@ -1,5 +1,7 @@
 #include "uwbloc/localization/params.hpp"
 
+#include <cstdio>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -7,6 +9,27 @@
 #include <ostream>
 
 namespace uwbloc::loc {
+
+std::string quoteToken(const std::string& token) {
+  std::string out = "'";
+  size_t shown = 0;
+  for (const char c : token) {
+    if (shown == 80) {
+      out += "...";
+      break;
+    }
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", u);
+      out += buf;
+    } else {
+      out += c;
+    }
+    ++shown;
+  }
+  return out + "'";
+}
 
 std::istream& operator>>(std::istream& in, AutoDouble& v) {
   std::string token;
@@ -41,7 +64,7 @@ ParamSet ParamSet::parse(const std::string& text, const std::string& context) {
     if (item.empty()) continue;
     const auto eq = item.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
-      throw ParamError(context + ": expected key=value, got '" + item + "'");
+      throw ParamError(context + ": expected key=value, got " + quoteToken(item));
     set.values_[item.substr(0, eq)] = item.substr(eq + 1);
   }
   return set;

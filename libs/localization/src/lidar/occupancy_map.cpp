@@ -78,13 +78,31 @@ bool OccupancyMap::occupied(const Eigen::Vector2d& p) const {
 
 bool OccupancyMap::segmentBlocked(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                                   double skip_end) const {
-  // Sample the segment at a quarter cell: no occupied cell the segment crosses is missed.
+  // Sample the segment at a quarter cell: no occupied cell the segment crosses is missed. Only
+  // the part inside the map is walked (outside counts as free), so the walk is bounded by the
+  // map's size whatever the end points are.
   const Eigen::Vector2d d = b - a;
   const double len = d.norm();
-  const double step = 0.25 * resolution();
+  if (!std::isfinite(len)) return false;
   const double stop = len - skip_end;
-  for (double s = 0.0; s <= stop; s += step)
-    if (occupied(a + d * (s / std::max(len, 1e-12)))) return true;
+  if (stop < 0.0 || len < 1e-12) return occupied(a);
+  const Rect box = bounds();
+  double s0 = 0.0, s1 = stop;  // the span of s (distance along a->b) inside the map
+  for (int axis = 0; axis < 2; ++axis) {
+    const double lo = axis == 0 ? box.xmin : box.ymin, hi = axis == 0 ? box.xmax : box.ymax;
+    const double p = a(axis), v = d(axis) / len;
+    if (std::abs(v) < 1e-15) {
+      if (p < lo || p > hi) return false;
+      continue;
+    }
+    double e0 = (lo - p) / v, e1 = (hi - p) / v;
+    if (e0 > e1) std::swap(e0, e1);
+    s0 = std::max(s0, e0);
+    s1 = std::min(s1, e1);
+  }
+  const double step = 0.25 * resolution();
+  for (double s = std::max(0.0, s0); s <= s1; s += step)
+    if (occupied(a + d * (s / len))) return true;
   return false;
 }
 

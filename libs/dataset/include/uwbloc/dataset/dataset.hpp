@@ -43,6 +43,10 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
 /// Rule: at least 50 messages and fewer distinct stamps than a tenth of them.
 std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events);
 
+/// When the reference covers under half of the recording's time span (or none of it), a one-line
+/// explanation naming both spans; nothing otherwise (nor when there is no reference).
+std::optional<std::string> referenceCoverageWarning(const Dataset& ds);
+
 /// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per
 /// range, in the rawlog's order. CObservationBeaconRanges has no field for the powers, so the
 /// importer writes them here and the loader attaches them to the ranges with the same time and

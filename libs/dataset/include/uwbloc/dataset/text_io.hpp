@@ -7,6 +7,10 @@
 
 namespace uwbloc::data {
 
+/// Throws InputError unless `path` is a regular file (a FIFO would block a reader for ever, a
+/// device would never end).
+void requireRegularFile(const std::string& path);
+
 /// Calls `on_line(line_number, fields)` for each non-empty, non-comment ('#' or '%') line, with
 /// fields split on commas and/or whitespace. Throws InputError if the file cannot be opened.
 void forEachRow(const std::string& path,

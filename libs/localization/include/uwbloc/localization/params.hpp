@@ -20,6 +20,10 @@ struct ParamInfo {
   std::string help;
 };
 
+/// A user's token for an error message: at most 80 characters (longer ones end in "..."), control
+/// characters escaped, so that a message stays one readable line whatever the input held.
+std::string quoteToken(const std::string& token);
+
 /// Bad user input about methods or parameters.
 class ParamError : public std::runtime_error {
  public:
@@ -90,14 +94,14 @@ class ParamSet {
           return;
         }
       throw ParamError(context_ + ": parameter '" + key + "' must be " + enumChoices<T>() +
-                       ", got '" + it->second + "'");
+                       ", got " + quoteToken(it->second));
     } else {
       std::istringstream in(it->second);
       T parsed{};
       in >> parsed;
       if (in.fail() || !(in >> std::ws).eof())
-        throw ParamError(context_ + ": parameter '" + key + "' has invalid value '" + it->second +
-                         "'");
+        throw ParamError(context_ + ": parameter '" + key + "' has invalid value " +
+                         quoteToken(it->second));
       value = parsed;
     }
   }
