@@ -204,3 +204,42 @@ TEST(Cli, ManifestNameCannotMoveTheOutput) {
   EXPECT_TRUE(std::filesystem::exists(dir / "runs" / "______escaped" / "metrics.json")) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir.parent_path().parent_path() / "escaped"));
 }
+
+TEST(Cli, UnknownMethodNamesInSetAndConfigAndAbsurdOptions) {
+  const auto dir = uwbloc::test::scratchDir();
+  expectFailureMentioning(runCli("compare --set uwb-kff.q=1 -o " + (dir / "r").string()),
+                          {"uwb-kff", "is not a method"});
+  const auto cfg = writeText(dir / "c.ini", "[uwb-ekf]\nq = 0.2\n[bogus]\nx = 1\n");
+  expectFailureMentioning(runCli("compare --config " + cfg + " -o " + (dir / "r").string()),
+                          {"c.ini", "[bogus]", "is not a method"});
+  const auto pop = runCli("bench-optimizers --population 0");
+  EXPECT_EQ(pop.code, 2) << pop.output;
+  const auto rep = runCli("compare --repeat 100000000");
+  EXPECT_EQ(rep.code, 2) << rep.output;
+}
+
+TEST(Cli, AReferenceThatDoesNotOverlapTheRunIsRefused) {
+  const auto dir = uwbloc::test::scratchDir();
+  std::vector<uwbloc::loc::Event> events;
+  for (int k = 0; k < 60; ++k) {
+    uwbloc::uwb::Range r;
+    r.t = 0.1 * k;
+    r.anchor_id = 1 + k % 3;
+    r.range = 4.0;
+    events.emplace_back(r);
+  }
+  uwbloc::data::writeRawlog((dir / "o.rawlog").string(), events);
+  writeText(dir / "anchors.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2\n3,0,6,2\n");
+  writeText(dir / "gt.txt", "100 1 1 0\n200 2 2 0\n");
+  const auto manifest = writeText(dir / "m.ini",
+                                  "[dataset]\nrawlog = o.rawlog\nground_truth = gt.txt\n"
+                                  "ground_truth_format = time_xyphi\n[anchors]\n"
+                                  "anchors_csv = anchors.csv\n");
+  const auto out = (dir / "run").string();
+  expectFailureMentioning(runCli("compare -d " + manifest + " -m uwb-ls -o " + out),
+                          {"gt.txt", "covers 0 %", "--allow-partial-reference"});
+  const auto allowed =
+      runCli("compare -d " + manifest + " -m uwb-ls --allow-partial-reference -o " + out);
+  EXPECT_EQ(allowed.code, 0) << allowed.output;
+  EXPECT_NE(allowed.output.find("WARNING"), std::string::npos) << allowed.output;
+}

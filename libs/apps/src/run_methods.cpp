@@ -73,8 +73,8 @@ void checkMethodNames(const RunOptions& opt) {
       throw loc::ParamError("--set expects method.key=value, got " + loc::quoteToken(s));
     if (!known(s.substr(0, dot)))
       throw loc::ParamError("--set " + loc::quoteToken(s) + ": " +
-                            loc::quoteToken(s.substr(0, dot)) + " is not a method (known: " +
-                            names + ")");
+                            loc::quoteToken(s.substr(0, dot)) +
+                            " is not a method (known: " + names + ")");
   }
 }
 

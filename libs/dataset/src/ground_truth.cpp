@@ -28,9 +28,10 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
       }
       case GroundTruthFormat::kTimeXyPhi:
         if (f.size() != 4)
-          throwInputError(path, line,
-                          "expected 'time x y phi', got " + std::to_string(f.size()) + " fields" +
-                              (f.size() == 8 ? " (a TUM file? set ground_truth_format = tum)" : ""));
+          throwInputError(
+              path, line,
+              "expected 'time x y phi', got " + std::to_string(f.size()) + " fields" +
+                  (f.size() == 8 ? " (a TUM file? set ground_truth_format = tum)" : ""));
         p.t = parseNumber(f[0], path, line, "time");
         p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
             parseNumber(f[3], path, line, "phi");

@@ -197,8 +197,9 @@ void readWorld(const IniFile& ini, const std::string& path, Scenario& s) {
     const double w = b.xmax - b.xmin, h = b.ymax - b.ymin;
     if (!(w > 0 && h > 0 && w <= 1e4 && h <= 1e4 && std::abs(b.xmin) <= 1e5 &&
           std::abs(b.ymin) <= 1e5))
-      throwInputError(path, ini.lineOf("world", "bounds"),
-                      "[world] bounds must span (0, 10 000] m each way, within 100 km of the origin");
+      throwInputError(
+          path, ini.lineOf("world", "bounds"),
+          "[world] bounds must span (0, 10 000] m each way, within 100 km of the origin");
     if (w * h / (s.map_resolution * s.map_resolution) > 1e8)
       throwInputError(path, ini.lineOf("world", "bounds"),
                       "[world] bounds / resolution give over 1e8 cells");

@@ -1,7 +1,5 @@
 #include "uwbloc/dataset/text_io.hpp"
 
-#include "uwbloc/localization/params.hpp"
-
 #include <unistd.h>
 
 #include <atomic>
@@ -13,6 +11,7 @@
 #include <sstream>
 
 #include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/localization/params.hpp"
 
 namespace uwbloc::data {
 
@@ -70,7 +69,8 @@ double parseNumber(const std::string& text, const std::string& file, int line,
   char* end = nullptr;
   const double v = std::strtod(text.c_str(), &end);
   if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE)
-    throwInputError(file, line, "field '" + field + "': expected a number, got " + loc::quoteToken(text));
+    throwInputError(file, line,
+                    "field '" + field + "': expected a number, got " + loc::quoteToken(text));
   return v;
 }
 

@@ -1,9 +1,8 @@
 #include "uwbloc/localization/params.hpp"
 
-#include <cstdio>
-
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <istream>
 #include <ostream>
