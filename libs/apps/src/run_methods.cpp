@@ -78,10 +78,16 @@ void checkMethodNames(const RunOptions& opt) {
   }
 }
 
-void printProgress(double fraction, const std::string& label) {
-  const bool tty = isatty(fileno(stderr));
-  std::fprintf(stderr, "%s[%s] %3.0f%%%s", tty ? "\r" : "", label.c_str(), 100.0 * fraction,
-               tty ? (fraction >= 1.0 ? "\n" : "") : "\n");
+// A bar with the rate and the time left, on a terminal only: redirected output stays clean.
+void printProgress(double fraction, double elapsed_s, const std::string& label) {
+  if (!isatty(fileno(stderr))) return;
+  const int width = 30, done = static_cast<int>(fraction * width + 0.5);
+  const double left = fraction > 0.0 ? elapsed_s * (1.0 - fraction) / fraction : 0.0;
+  std::fprintf(stderr, "\r%-24.24s [%s%s] %3.0f%%  %.0f s, %.0f s left  ", label.c_str(),
+               std::string(static_cast<size_t>(done), '#').c_str(),
+               std::string(static_cast<size_t>(width - done), '.').c_str(), 100.0 * fraction,
+               elapsed_s, left);
+  if (fraction >= 1.0) std::fprintf(stderr, "\n");
   std::fflush(stderr);
 }
 

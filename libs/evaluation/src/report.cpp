@@ -138,13 +138,19 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
   std::ostringstream out;
   out << "dataset,method,runs,steps,coverage,rmse_x,rmse_y,rmse_2d,rmse_2d_std,mae_2d,"
          "median_2d,p95_2d,max_2d,ms_per_step,realtime_factor,rejected_total,resets\n";
+  // A metric that cannot be computed is an empty field, never "nan".
+  auto v = [](double x) {
+    std::ostringstream s;
+    if (std::isfinite(x)) s << x;
+    return s.str();
+  };
   for (const auto& m : methods) {
     out << dataset.name << ",\"" << m.spec << "\"," << m.runs << "," << m.metrics.steps << ","
-        << m.metrics.coverage << "," << m.metrics.rmse_x << "," << m.metrics.rmse_y << ","
-        << m.metrics.rmse_2d << "," << m.rmse_2d_std << "," << m.metrics.mae_2d << ","
-        << m.metrics.median_2d << "," << m.metrics.p95_2d << "," << m.metrics.max_2d << ","
-        << m.ms_per_step << "," << m.realtime_factor << "," << totalRejected(m) << "," << m.resets
-        << "\n";
+        << v(m.metrics.coverage) << "," << v(m.metrics.rmse_x) << "," << v(m.metrics.rmse_y)
+        << "," << v(m.metrics.rmse_2d) << "," << v(m.rmse_2d_std) << "," << v(m.metrics.mae_2d)
+        << "," << v(m.metrics.median_2d) << "," << v(m.metrics.p95_2d) << ","
+        << v(m.metrics.max_2d) << "," << v(m.ms_per_step) << "," << v(m.realtime_factor) << ","
+        << totalRejected(m) << "," << m.resets << "\n";
   }
   return out.str();
 }

@@ -64,7 +64,8 @@ RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint6
       const auto now = Clock::now();
       if (now - wall_start > std::chrono::seconds(2) &&
           now - last_report > std::chrono::milliseconds(500)) {
-        progress(static_cast<double>(i) / static_cast<double>(n), spec);
+        progress(static_cast<double>(i) / static_cast<double>(n),
+                 std::chrono::duration<double>(now - wall_start).count(), spec);
         last_report = now;
       }
     }
@@ -73,7 +74,8 @@ RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint6
   auto last = estimator->finishAll();
   busy += std::chrono::duration<double>(Clock::now() - t0).count();
   for (auto& e : last) keep(std::move(e));
-  if (progress && Clock::now() - wall_start > std::chrono::seconds(2)) progress(1.0, spec);
+  if (progress && Clock::now() - wall_start > std::chrono::seconds(2))
+    progress(1.0, std::chrono::duration<double>(Clock::now() - wall_start).count(), spec);
   result.statistics = estimator->statistics();
   result.artifacts = estimator->artifacts();
   result.processing_seconds = busy;

@@ -15,7 +15,8 @@
 namespace uwbloc::eval {
 
 /// Called now and then on long runs: fraction done in [0, 1] and the method's label.
-using ProgressFn = std::function<void(double fraction, const std::string& label)>;
+/// Progress of a long run: the fraction done, the seconds it has taken so far, and the label.
+using ProgressFn = std::function<void(double fraction, double elapsed_s, const std::string& label)>;
 
 struct RunResult {
   std::string spec;                           ///< method spec as given
