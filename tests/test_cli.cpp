@@ -35,6 +35,25 @@ void expectFailureMentioning(const Result& r, std::initializer_list<std::string>
   for (const auto& p : parts) EXPECT_NE(r.output.find(p), std::string::npos) << r.output;
 }
 
+// `count` ranges of 4 m, 0.1 s apart, anchors 1-3 in turn (or the stamps `stamp(k)`), written
+// as a rawlog at `path`.
+template <class Stamp>
+void writeRanges(const std::filesystem::path& path, int count, Stamp stamp, int anchors = 3) {
+  std::vector<uwbloc::loc::Event> events;
+  for (int k = 0; k < count; ++k) {
+    uwbloc::uwb::Range r;
+    r.t = stamp(k);
+    r.anchor_id = 1 + k % anchors;
+    r.range = 4.0;
+    events.emplace_back(r);
+  }
+  uwbloc::data::writeRawlog(path.string(), events);
+}
+void writeRanges(const std::filesystem::path& path, int count, int anchors = 3) {
+  writeRanges(
+      path, count, [](int k) { return 0.1 * k; }, anchors);
+}
+
 std::string manifestFor(const std::filesystem::path& dir, const std::string& rawlog,
                         const std::string& anchors = "anchors_csv = anchors.csv") {
   writeText(dir / "anchors.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2\n3,0,6,2\n");
@@ -113,15 +132,7 @@ TEST(Cli, CompareWritesTheRunDirectory) {
 TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {
   // 300 ranges written with six significant digits: two distinct stamps.
   const auto dir = uwbloc::test::scratchDir();
-  std::vector<uwbloc::loc::Event> events;
-  for (int k = 0; k < 300; ++k) {
-    uwbloc::uwb::Range r;
-    r.t = k < 150 ? 1.13486e9 : 1.13487e9;
-    r.anchor_id = 1 + k % 3;
-    r.range = 4.0;
-    events.emplace_back(r);
-  }
-  uwbloc::data::writeRawlog((dir / "c.rawlog").string(), events);
+  writeRanges(dir / "c.rawlog", 300, [](int k) { return k < 150 ? 1.13486e9 : 1.13487e9; });
   const auto manifest = manifestFor(dir, "c.rawlog");
   const auto out = (dir / "run").string();
   expectFailureMentioning(
@@ -136,15 +147,7 @@ TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {
 TEST(Cli, AMethodWithoutAnEstimateIsFlaggedAndStrictExitsThree) {
   // Ranges from one anchor only: no epoch can be solved.
   const auto dir = uwbloc::test::scratchDir();
-  std::vector<uwbloc::loc::Event> events;
-  for (int k = 0; k < 100; ++k) {
-    uwbloc::uwb::Range r;
-    r.t = 0.1 * k;
-    r.anchor_id = 1;
-    r.range = 4.0;
-    events.emplace_back(r);
-  }
-  uwbloc::data::writeRawlog((dir / "one.rawlog").string(), events);
+  writeRanges(dir / "one.rawlog", 100, 1);
   const auto manifest = manifestFor(dir, "one.rawlog");
   const auto out = (dir / "run").string();
   const auto lenient = runCli("compare -d " + manifest + " -m uwb-ls -o " + out);
@@ -183,15 +186,7 @@ TEST(Cli, RunDirectoryIsReplacedWholeAndLocked) {
 
 TEST(Cli, ManifestNameCannotMoveTheOutput) {
   const auto dir = uwbloc::test::scratchDir();
-  std::vector<uwbloc::loc::Event> events;
-  for (int k = 0; k < 60; ++k) {
-    uwbloc::uwb::Range r;
-    r.t = 0.1 * k;
-    r.anchor_id = 1 + k % 3;
-    r.range = 4.0;
-    events.emplace_back(r);
-  }
-  uwbloc::data::writeRawlog((dir / "n.rawlog").string(), events);
+  writeRanges(dir / "n.rawlog", 60);
   writeText(dir / "anchors.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2\n3,0,6,2\n");
   const auto manifest = writeText(dir / "m.ini",
                                   "[dataset]\nname = ../../escaped\nrawlog = n.rawlog\n[anchors]\n"
@@ -220,15 +215,7 @@ TEST(Cli, UnknownMethodNamesInSetAndConfigAndAbsurdOptions) {
 
 TEST(Cli, AReferenceThatDoesNotOverlapTheRunIsRefused) {
   const auto dir = uwbloc::test::scratchDir();
-  std::vector<uwbloc::loc::Event> events;
-  for (int k = 0; k < 60; ++k) {
-    uwbloc::uwb::Range r;
-    r.t = 0.1 * k;
-    r.anchor_id = 1 + k % 3;
-    r.range = 4.0;
-    events.emplace_back(r);
-  }
-  uwbloc::data::writeRawlog((dir / "o.rawlog").string(), events);
+  writeRanges(dir / "o.rawlog", 60);
   writeText(dir / "anchors.csv", "id,x,y,z\n1,0,0,2\n2,6,0,2\n3,0,6,2\n");
   writeText(dir / "gt.txt", "100 1 1 0\n200 2 2 0\n");
   const auto manifest = writeText(dir / "m.ini",

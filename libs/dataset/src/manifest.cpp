@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -115,14 +116,11 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
 }
 
 std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors) {
-  std::string csv = "id,x,y,z\n";
-  char buf[200];
-  for (const auto& a : anchors) {
-    std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", a.id, a.position.x(), a.position.y(),
-                  a.position.z());
-    csv += buf;
-  }
-  return csv;
+  std::ostringstream csv;
+  csv << "id,x,y,z\n" << std::fixed << std::setprecision(4);
+  for (const auto& a : anchors)
+    csv << a.id << ',' << a.position.x() << ',' << a.position.y() << ',' << a.position.z() << '\n';
+  return csv.str();
 }
 
 namespace {

@@ -146,11 +146,11 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
   };
   for (const auto& m : methods) {
     out << dataset.name << ",\"" << m.spec << "\"," << m.runs << "," << m.metrics.steps << ","
-        << v(m.metrics.coverage) << "," << v(m.metrics.rmse_x) << "," << v(m.metrics.rmse_y)
-        << "," << v(m.metrics.rmse_2d) << "," << v(m.rmse_2d_std) << "," << v(m.metrics.mae_2d)
-        << "," << v(m.metrics.median_2d) << "," << v(m.metrics.p95_2d) << ","
-        << v(m.metrics.max_2d) << "," << v(m.ms_per_step) << "," << v(m.realtime_factor) << ","
-        << totalRejected(m) << "," << m.resets << "\n";
+        << v(m.metrics.coverage) << "," << v(m.metrics.rmse_x) << "," << v(m.metrics.rmse_y) << ","
+        << v(m.metrics.rmse_2d) << "," << v(m.rmse_2d_std) << "," << v(m.metrics.mae_2d) << ","
+        << v(m.metrics.median_2d) << "," << v(m.metrics.p95_2d) << "," << v(m.metrics.max_2d) << ","
+        << v(m.ms_per_step) << "," << v(m.realtime_factor) << "," << totalRejected(m) << ","
+        << m.resets << "\n";
   }
   return out.str();
 }
