@@ -5,6 +5,7 @@ packages=(build-essential cmake ninja-build ccache pkg-config
           libmrpt-dev mrpt-common libeigen3-dev libceres-dev libcli11-dev nlohmann-json3-dev
           libgtest-dev libbenchmark-dev)
 if [ "${UWBLOC_WITH_MRPT_APPS:-0}" = "1" ]; then packages+=(mrpt-apps); fi
+if [ "${UWBLOC_WITH_FUZZ:-0}" = "1" ]; then packages+=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,25 @@
+// libFuzzer target: method specs and --set values ("name:k=v,k=v") through the registry, as the
+// CLI builds every method.
+#include <cstdint>
+#include <string>
+
+#include "uwbloc/localization/registry.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  uwbloc::loc::EstimatorContext ctx;
+  ctx.anchors = {{1, {0, 0, 2}}, {2, {6, 0, 2}}, {3, {0, 6, 2}}};
+  ctx.initial_pose = Eigen::Vector3d(1, 1, 0);
+  try {
+    auto est = uwbloc::loc::Registry::builtin().create(text, ctx);
+    uwbloc::uwb::Range r;
+    r.t = 1.0;
+    r.anchor_id = 1;
+    r.range = 3.0;
+    est->process(r);
+    est->finishAll();
+  } catch (const uwbloc::loc::ParamError&) {
+  } catch (const std::invalid_argument&) {
+  }
+  return 0;
+}
