@@ -24,9 +24,9 @@ struct RunOptions {
   std::vector<std::string> sets;
   uint64_t seed = 1;
   int repeat = 1;
-  bool allow_bad_time = false;  ///< score a recording whose timestamps have collapsed
+  bool allow_bad_time = false;           ///< score a recording whose timestamps have collapsed
   bool allow_partial_reference = false;  ///< score against a reference covering < half the run
-  bool strict = false;          ///< exit 3 when a method is flagged (no estimate, low coverage)
+  bool strict = false;  ///< exit 3 when a method is flagged (no estimate, low coverage)
 };
 
 /// `run` (one method) and `compare` (several): replay, score, write the run directory, print
