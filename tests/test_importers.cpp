@@ -52,7 +52,9 @@ TEST(Carmen, CorrectedPoseCopiesAndBadStampsAreDroppedAndCounted) {
     log += copy.str();
   }
   log += odom(-3.0, {20.0, 0.0, 0.0});  // a negative stamp
-  log += odom(4.0, {30.0, 0.0, 0.0});   // earlier than the last kept reading
+  log += "ODOM nan 0 0 0 0 0 30.0 host 30.0\n";
+  log += flaser(31.0, {std::nan(""), 0.0, 0.0});
+  log += odom(4.0, {30.0, 0.0, 0.0});  // earlier than the last kept reading
   const auto dir = test::scratchDir();
   test::writeText(dir / "x.log", log);
   const auto s = data::importCarmen((dir / "x.log").string(), (dir / "out").string());
@@ -60,6 +62,8 @@ TEST(Carmen, CorrectedPoseCopiesAndBadStampsAreDroppedAndCounted) {
   EXPECT_EQ(s.skipped.at("odom_corrected_pose_copy"), 8);
   EXPECT_EQ(s.skipped.at("odom_negative_time"), 1);
   EXPECT_EQ(s.skipped.at("odom_out_of_order"), 1);
+  EXPECT_EQ(s.skipped.at("odom_non_finite_pose"), 1);
+  EXPECT_EQ(s.skipped.at("flaser_non_finite_pose"), 1);
   // What is left is the raw odometry: 15 increments of 0.5 m along x, in time order.
   const auto rec = data::readRawlog((dir / "out" / "carmen.rawlog").string());
   double x = 0.0, last_t = -1.0;

@@ -80,6 +80,7 @@ class CarmenOdometry {
     if (last_corrected_ && samePose(pose, *last_corrected_))
       return skip("odom_corrected_pose_copy");
     if (const char* problem = timestampProblem(t)) return skip(std::string("odom_") + problem);
+    if (!pose.allFinite()) return skip("odom_non_finite_pose");
     if (!odometry_.add(t, pose, log_.events)) return skip("odom_out_of_order");
   }
 
@@ -124,6 +125,10 @@ CarmenLog parseCarmen(const std::string& log_path) {
                                 num(n + 6, "odom_theta"));
       if (const char* problem = timestampProblem(t)) {
         ++log.skipped[std::string("flaser_") + problem];
+        continue;
+      }
+      if (!corrected.allFinite()) {
+        ++log.skipped["flaser_non_finite_pose"];
         continue;
       }
       log.events.emplace_back(flaserScan(n, t, num));
