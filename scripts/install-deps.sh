@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages uwbloc needs, only those missing. Uses sudo when not root.
+# Quiet: one line per stage; apt's full output goes to install-deps.log and is printed only
+# when a stage fails.
 set -euo pipefail
+cd "$(dirname "$0")/.."
 packages=(build-essential cmake ninja-build ccache pkg-config
           libmrpt-dev mrpt-common libeigen3-dev libceres-dev libcli11-dev nlohmann-json3-dev
           libgtest-dev libbenchmark-dev)
@@ -13,8 +16,20 @@ done
 if [ ${#missing[@]} -eq 0 ]; then
   exit 0
 fi
-echo "Installing: ${missing[*]}"
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+log=install-deps.log
+: > "$log"
+stage() {  # stage "description" command...
+  local what="$1"
+  shift
+  echo "$what"
+  if ! "$@" >> "$log" 2>&1; then
+    echo "failed: $what; the full output ($log):"
+    cat "$log"
+    exit 1
+  fi
+}
+stage "Updating the package lists" $SUDO apt-get update
+stage "Installing ${#missing[@]} packages: ${missing[*]}" \
+  env DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
