@@ -150,12 +150,21 @@ TEST(Cli, AMethodWithoutAnEstimateIsFlaggedAndStrictExitsThree) {
   writeRanges(dir / "one.rawlog", 100, 1);
   const auto manifest = manifestFor(dir, "one.rawlog");
   const auto out = (dir / "run").string();
-  const auto lenient = runCli("compare -d " + manifest + " -m uwb-ls -o " + out);
+  // No method produced a result: never a success, --strict or not.
+  const auto none = runCli("compare -d " + manifest + " -m uwb-ls -o " + out);
+  EXPECT_EQ(none.code, 3) << none.output;
+  EXPECT_NE(none.output.find("FLAGGED: uwb-ls produced no estimate"), std::string::npos)
+      << none.output;
+  // One method without a result beside one with: flagged; an error only with --strict. Three
+  // anchors, all ranges 4 m: uwb-ls solves every epoch, uwb-ekf never accepts a start fix.
+  writeRanges(dir / "three.rawlog", 100);
+  const auto three = manifestFor(dir, "three.rawlog");
+  const std::string both =
+      "compare -d " + three + " -m uwb-ls,uwb-ekf:init_residual=0.01 -o " + out;
+  const auto lenient = runCli(both);
   EXPECT_EQ(lenient.code, 0) << lenient.output;
-  EXPECT_NE(lenient.output.find("FLAGGED: uwb-ls produced no estimate"), std::string::npos)
-      << lenient.output;
-  const auto strict = runCli("compare -d " + manifest + " -m uwb-ls --strict -o " + out);
-  EXPECT_EQ(strict.code, 3) << strict.output;
+  EXPECT_NE(lenient.output.find("FLAGGED: uwb-ekf"), std::string::npos) << lenient.output;
+  EXPECT_EQ(runCli(both + " --strict").code, 3);
 }
 
 TEST(Cli, RunDirectoryIsReplacedWholeAndLocked) {

@@ -193,10 +193,16 @@ int RunMethodsCommand::run() {
   eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
   std::cout << eval::formatTable(ds, summaries, bounds);
   std::cout << "Run directory: " << out << "\n";
-  if (opt.strict)
-    for (const auto& s : summaries)
-      if (!eval::resultFlag(ds, s).empty()) return kNoResult;
-  return kSuccess;
+  // No valid result at all is never a success; with --strict, neither is any flagged method.
+  long flagged = 0, without_estimate = 0;
+  for (const auto& m : summaries) {
+    const std::string flag = eval::resultFlag(ds, m);
+    flagged += !flag.empty();
+    without_estimate += flag == "no_estimate";
+  }
+  if (summaries.empty() || without_estimate == static_cast<long>(summaries.size()))
+    return kNoResult;
+  return opt.strict && flagged > 0 ? kNoResult : kSuccess;
 }
 
 }  // namespace uwbloc::apps
