@@ -236,6 +236,9 @@ TEST(Cli, AReferenceThatDoesNotOverlapTheRunIsRefused) {
                           {"gt.txt", "covers 0 %", "--allow-partial-reference"});
   const auto allowed =
       runCli("compare -d " + manifest + " -m uwb-ls --allow-partial-reference -o " + out);
-  EXPECT_EQ(allowed.code, 0) << allowed.output;
+  // Allowed, but nothing overlaps the reference: the run is scored, warned and flagged, and a
+  // result that cannot be scored is not a success.
+  EXPECT_EQ(allowed.code, 3) << allowed.output;
   EXPECT_NE(allowed.output.find("WARNING"), std::string::npos) << allowed.output;
+  EXPECT_NE(allowed.output.find("FLAGGED"), std::string::npos) << allowed.output;
 }
