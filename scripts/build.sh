@@ -7,19 +7,10 @@ generator=()
 if command -v ninja >/dev/null; then generator=(-G Ninja); fi
 log=build.log
 : > "$log"
-run() {  # run "description" command...
-  local what="$1"
-  shift
-  echo "$what"
-  if ! "$@" >> "$log" 2>&1; then
-    echo "failed: $what; the full output ($log):"
-    cat "$log"
-    exit 1
-  fi
-}
+source scripts/quiet.sh
 if [ ! -f build/CMakeCache.txt ]; then
-  run "Configuring build/" cmake -S . -B build "${generator[@]}" -DCMAKE_BUILD_TYPE=Release "$@"
+  stage "Configuring build/" cmake -S . -B build "${generator[@]}" -DCMAKE_BUILD_TYPE=Release "$@"
 else
-  run "Configuring build/" cmake -S . -B build "$@"
+  stage "Configuring build/" cmake -S . -B build "$@"
 fi
-run "Building ($(nproc) jobs)" cmake --build build --parallel "$(nproc)"
+stage "Building ($(nproc) jobs)" cmake --build build --parallel "$(nproc)"

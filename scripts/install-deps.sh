@@ -20,16 +20,7 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 log=install-deps.log
 : > "$log"
-stage() {  # stage "description" command...
-  local what="$1"
-  shift
-  echo "$what"
-  if ! "$@" >> "$log" 2>&1; then
-    echo "failed: $what; the full output ($log):"
-    cat "$log"
-    exit 1
-  fi
-}
+source scripts/quiet.sh
 stage "Updating the package lists" $SUDO apt-get update
 stage "Installing ${#missing[@]} packages: ${missing[*]}" \
   env DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
