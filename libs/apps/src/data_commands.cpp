@@ -125,8 +125,7 @@ void BenchmarkCommand::declare(CLI::App& parser) {
 int BenchmarkCommand::run() {
   eval::BenchmarkOptions o;
   o.data_dir = data::resolveDataDir(data_dir_);
-  const std::string demo = data::resolveInputPath("mrpt_uwb_demo.ini", "");
-  o.project_datasets = std::filesystem::path(demo).parent_path().string();
+  o.project_datasets = data::projectDatasetsDir();
   o.work_dir = out_;
   o.seeds = seeds_;
   o.methods = splitList(methods_);

@@ -5,6 +5,7 @@
 #include <cctype>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <sstream>
 
 #include "commands.hpp"
@@ -36,46 +37,42 @@ std::vector<std::string> splitMethods(const std::string& list) {
   return out;
 }
 
-// Parameters for one method from --config (its [method] section) and --set method.key=value.
-loc::ParamSet extraParams(const std::string& method_name, const RunOptions& opt) {
-  loc::ParamSet extra;
-  if (!opt.config.empty()) {
-    const auto ini = data::IniFile::load(opt.config);
-    for (const auto& key : ini.keys(method_name)) extra.set(key, *ini.get(method_name, key));
-  }
-  for (const auto& s : opt.sets) {
-    const auto eq = s.find('=');
-    const auto dot = s.rfind('.', eq);
-    if (eq == std::string::npos || dot == std::string::npos)
-      throw loc::ParamError("--set expects method.key=value, got '" + s + "'");
-    if (s.substr(0, dot) == method_name)
-      extra.set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
-  }
-  return extra;
-}
-
-// --set and --config name methods by their registry name: a name that is no method is a typo
-// that would otherwise be ignored without a word.
-void checkMethodNames(const RunOptions& opt) {
+// Parameters from --config ([method] sections) and --set method.key=value, read once and keyed
+// by method. Both name methods by their registry name: a name that is no method is a typo that
+// would otherwise be ignored without a word, so it is an error.
+std::map<std::string, loc::ParamSet> methodOverrides(const RunOptions& opt) {
   const auto& registry = loc::Registry::builtin();
-  auto known = [&](const std::string& name) { return registry.find(name) != nullptr; };
   std::string names;
   for (const auto& n : registry.names()) names += (names.empty() ? "" : ", ") + n;
-  if (!opt.config.empty())
-    for (const auto& section : data::IniFile::load(opt.config).sections())
-      if (!known(section))
+  std::map<std::string, loc::ParamSet> out;
+  if (!opt.config.empty()) {
+    const auto ini = data::IniFile::load(opt.config);
+    for (const auto& section : ini.sections()) {
+      if (!registry.find(section))
         throw loc::ParamError(opt.config + ": section [" + section +
                               "] is not a method (known: " + names + ")");
+      for (const auto& key : ini.keys(section)) out[section].set(key, *ini.get(section, key));
+    }
+  }
   for (const auto& s : opt.sets) {
     const auto eq = s.find('=');
     const auto dot = s.rfind('.', eq);
     if (eq == std::string::npos || dot == std::string::npos)
       throw loc::ParamError("--set expects method.key=value, got " + loc::quoteToken(s));
-    if (!known(s.substr(0, dot)))
-      throw loc::ParamError("--set " + loc::quoteToken(s) + ": " +
-                            loc::quoteToken(s.substr(0, dot)) +
+    const std::string method = s.substr(0, dot);
+    if (!registry.find(method))
+      throw loc::ParamError("--set " + loc::quoteToken(s) + ": " + loc::quoteToken(method) +
                             " is not a method (known: " + names + ")");
+    out[method].set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
   }
+  return out;
+}
+
+// The overrides of the method a spec names (empty when none).
+loc::ParamSet overridesFor(const std::map<std::string, loc::ParamSet>& overrides,
+                           const std::string& spec) {
+  const auto it = overrides.find(loc::MethodSpec::parse(spec).name);
+  return it == overrides.end() ? loc::ParamSet{} : it->second;
 }
 
 // A bar with the rate and the time left, on a terminal only: redirected output stays clean.
@@ -94,6 +91,7 @@ void printProgress(double fraction, double elapsed_s, const std::string& label) 
 // Checks every method spec before spending time on any run. With 'all', methods whose needs
 // (ranges, scans, odometry, map) the dataset lacks are skipped; named ones are errors.
 std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptions& opt,
+                                         const std::map<std::string, loc::ParamSet>& overrides,
                                          const std::vector<std::string>& methods, bool all) {
   std::vector<std::string> runnable;
   for (const auto& m : methods) {
@@ -105,8 +103,7 @@ std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptio
       std::fprintf(stderr, "Skipping %s: the dataset has no %s\n", m.c_str(), missing.c_str());
       continue;
     }
-    loc::Registry::builtin().create(m, eval::makeContext(ds, opt.seed),
-                                    extraParams(loc::MethodSpec::parse(m).name, opt));
+    loc::Registry::builtin().create(m, eval::makeContext(ds, opt.seed), overridesFor(overrides, m));
     runnable.push_back(m);
   }
   return runnable;
@@ -159,7 +156,7 @@ void RunMethodsCommand::declare(CLI::App& parser) {
 
 int RunMethodsCommand::run() {
   const RunOptions& opt = options_;
-  checkMethodNames(opt);
+  const auto overrides = methodOverrides(opt);
   const std::string data_dir = data::resolveDataDir(opt.data_dir);
   const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);
   std::fprintf(stderr, "Loading %s\n", manifest.c_str());
@@ -185,10 +182,9 @@ int RunMethodsCommand::run() {
   const bool all = compare_ && methods_ == "all";
   const auto methods = compare_ ? splitMethods(methods_) : std::vector<std::string>{methods_};
   std::vector<eval::MethodSummary> summaries;
-  for (const auto& m : runnableMethods(ds, opt, methods, all))
+  for (const auto& m : runnableMethods(ds, opt, overrides, methods, all))
     summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed,
-                                             extraParams(loc::MethodSpec::parse(m).name, opt),
-                                             printProgress));
+                                             overridesFor(overrides, m), printProgress));
   const eval::DatasetBounds bounds = eval::computeBounds(ds);
   eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
   std::cout << eval::formatTable(ds, summaries, bounds);

@@ -45,6 +45,11 @@ std::string resolveDataDir(const std::string& flag) {
   return "";
 }
 
+std::string projectDatasetsDir() {
+  const auto roots = bundledRoots();
+  return roots.empty() ? "" : (roots.front() / "datasets").string();
+}
+
 std::string resolveInputPath(const std::string& path, const std::string& data_dir) {
   std::error_code ec;
   if (path.empty() || fs::exists(path, ec)) return path;

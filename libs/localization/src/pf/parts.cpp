@@ -61,7 +61,8 @@ UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
     : params_(params),
       front_(params.front, anchors),
       map_(std::move(map)),
-      nlos_reason_(std::string("nlos_") + enumName(params.nlos)) {
+      nlos_reason_(std::string("nlos_") + enumName(params.nlos)),
+      pose_gate_(params.nlos_k * params.nlos_k) {
   if (params_.nlos == NlosTest::kRaycast && !map_)
     throw ParamError("nlos=raycast needs a map: give the manifest's [dataset] map");
 }
@@ -110,7 +111,7 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   dec.t = r.measurement.t;
   dec.anchor_id = r.measurement.anchor_id;
   dec.range = d;
-  dec.flag_pose = !uwb::ChiSquareGate(params_.nlos_k * params_.nlos_k).accept(d - d_hat, s);
+  dec.flag_pose = !pose_gate_.accept(d - d_hat, s);
   if (map_) {
     const Eigen::Vector3d tag_world = uwb::tagPosition(e.mean, tag);
     dec.flag_raycast =

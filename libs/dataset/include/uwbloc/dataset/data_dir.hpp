@@ -10,6 +10,10 @@ namespace uwbloc::data {
 /// working directory, when that folder exists; "" if none.
 std::string resolveDataDir(const std::string& flag = "");
 
+/// The project's own datasets/ folder (the checkout's, or share/uwbloc/datasets when installed);
+/// "" when none is found.
+std::string projectDatasetsDir();
+
 /// A user-given path: as given if it exists, else relative to the data directory, else relative
 /// to the project's datasets/ folder (the checkout's, or share/uwbloc/datasets when installed),
 /// so that "mrpt_uwb_demo.ini" finds the bundled manifest.

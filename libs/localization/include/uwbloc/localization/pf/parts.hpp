@@ -224,6 +224,7 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   RangeFrontEnd front_;
   std::shared_ptr<const OccupancyMap> map_;
   std::string nlos_reason_;                  ///< "nlos_<test>", built once
+  uwb::ChiSquareGate pose_gate_;             ///< the pose test at k sigma (threshold k^2)
   std::vector<AcceptedRange> epoch_, used_;  ///< used_: the clean ones, for the swarm's fitness
   int epoch_flagged_ = 0;                    ///< ranges of the open epoch that failed the NLOS test
   int nlos_streak_ = 0;                      ///< epochs in a row in which most ranges failed it
