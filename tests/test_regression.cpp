@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
+#include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 
@@ -92,4 +94,37 @@ TEST(Plaza, GraphSmoothingBeatsDeadReckoningAndMultilateration) {
   EXPECT_NEAR(odom.metrics.rmse_2d, 31.6, 0.5);  // the data set's own DR path scores 31.64 m
   EXPECT_LT(graph.metrics.rmse_2d, odom.metrics.rmse_2d);
   EXPECT_LT(graph.metrics.rmse_2d, gn.metrics.rmse_2d);
+}
+
+// CMU Plaza2 with defaults only: sigma=auto finds the range std, bias=auto frees a bias per
+// beacon, and each estimated bias lies within 0.5 m of that beacon's median measured offset
+// (range minus the distance from the interpolated reference). Measured: 0.599 m; the issue's
+// target of 0.40 m is not reached (the best hand-set sigma gives 0.527 m).
+TEST(Plaza, GraphDefaultsEstimateNoiseAndBias) {
+  const auto src = test::sharedData("plaza_cmu_range_odometry");
+  UWBLOC_REQUIRE_SHARED_DATA(src);
+  const auto out = test::scratchDir();
+  const auto ds = data::loadDataset(data::importPlaza(src.string(), out.string()).manifest, "");
+  const auto run = eval::runMethod(ds, "graph-uwb-odom", 1);
+  const auto errors = eval::associate(run.trajectory, ds.ground_truth);
+  const double rmse = eval::computeMetrics(errors, run.trajectory, ds.ground_truth).rmse_2d;
+  std::printf("[ PLAZA    ] graph-uwb-odom defaults: rmse_2d %.3f m, model sigma %.3f m\n", rmse,
+              run.statistics.estimated_range_sigma.value_or(-1.0));
+  EXPECT_LT(rmse, 0.65);
+  std::map<int, std::vector<double>> offsets;
+  for (const auto& e : ds.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e))
+      if (const auto p = eval::interpolateGroundTruth(ds.ground_truth, r->t, 1.0))
+        for (const auto& a : ds.anchors)
+          if (a.id == r->anchor_id)
+            offsets[a.id].push_back(r->range - (Eigen::Vector3d(p->x(), p->y(), 0.0) -
+                                                a.position).norm());
+  ASSERT_EQ(run.statistics.estimated_noise.size(), offsets.size());
+  for (const auto& [id, v] : offsets) {
+    const double median = eval::quantile(v, 0.5);
+    const double bias = run.statistics.estimated_noise.at(id).bias;
+    std::printf("[ PLAZA    ] beacon %d: estimated bias %+.3f m, median offset %+.3f m\n", id, bias,
+                median);
+    EXPECT_NEAR(bias, median, 0.5) << id;
+  }
 }

@@ -115,6 +115,13 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["resets"] = m.resets;
     e["events"] = nlohmann::json::object();
     for (const auto& [name, count] : m.events) e["events"][name] = count;
+    if (!m.estimated_noise.empty() || m.estimated_range_sigma) {
+      e["estimated_noise"] = nlohmann::json::object();
+      for (const auto& [anchor, n] : m.estimated_noise)
+        e["estimated_noise"][std::to_string(anchor)] = {
+            {"bias", number(n.bias)}, {"sigma", number(n.sigma)}, {"ranges", n.ranges}};
+      if (m.estimated_range_sigma) e["estimated_range_sigma"] = number(*m.estimated_range_sigma);
+    }
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
     for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
@@ -227,6 +234,22 @@ void rejectionLines(std::ostringstream& out, const std::vector<MethodSummary>& m
         }
         out << "}";
       }
+    }
+    out << "\n";
+  }
+  for (const auto& m : methods) {
+    if (m.estimated_noise.empty() && !m.estimated_range_sigma) continue;
+    out << "  " << m.spec << " estimated noise:";
+    if (m.estimated_range_sigma) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, " model sigma %.3f m;", *m.estimated_range_sigma);
+      out << buf;
+    }
+    for (const auto& [anchor, n] : m.estimated_noise) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, " %d{bias %+.3f, sigma %.3f, n %ld}", anchor, n.bias, n.sigma,
+                    n.ranges);
+      out << buf;
     }
     out << "\n";
   }

@@ -121,6 +121,8 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
       s.accepted_ranges = run.statistics.accepted_ranges;
       s.resets = run.statistics.resets;
       s.events = run.statistics.events;
+      s.estimated_noise = run.statistics.estimated_noise;
+      s.estimated_range_sigma = run.statistics.estimated_range_sigma;
       s.range_decisions = run.statistics.range_decisions;
       s.artifacts = run.artifacts;
     }

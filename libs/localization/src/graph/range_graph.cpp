@@ -1,6 +1,8 @@
 #include "uwbloc/localization/graph/range_graph.hpp"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <thread>
 
@@ -179,6 +181,133 @@ GraphSolution RangeGraph::solve() {
   out.initial_cost = summary.initial_cost;
   out.final_cost = summary.final_cost;
   out.report = summary.BriefReport();
+  return out;
+}
+
+double RangeGraph::rangeResidual(const Range& r, Eigen::Vector3d* gradient) const {
+  const Eigen::Vector3d& x = poses_[static_cast<size_t>(r.pose)];
+  const Eigen::Vector3d& a = anchors_[static_cast<size_t>(r.anchor)].position;
+  const double c = std::cos(x.z()), s = std::sin(x.z());
+  const Eigen::Vector3d d(x.x() + c * r.tag.x() - s * r.tag.y() - a.x(),
+                          x.y() + s * r.tag.x() + c * r.tag.y() - a.y(), r.tag.z() - a.z());
+  const double dist = std::max(d.norm(), 1e-9);
+  if (gradient) {
+    // d(dist)/d(x, y, theta); the residual's gradient is its negative.
+    const double dtheta = d.x() * (-s * r.tag.x() - c * r.tag.y()) +
+                          d.y() * (c * r.tag.x() - s * r.tag.y());
+    *gradient = -Eigen::Vector3d(d.x(), d.y(), dtheta) / dist;
+  }
+  return r.range - dist - biases_[static_cast<size_t>(r.anchor)];
+}
+
+double RangeGraph::lossWeight(double whitened) const {
+  const double u = whitened / params_.loss_scale;
+  if (params_.loss == RobustLoss::kCauchy) return 1.0 / (1.0 + u * u);
+  if (params_.loss == RobustLoss::kHuber) return std::abs(u) <= 1.0 ? 1.0 : 1.0 / std::abs(u);
+  return 1.0;
+}
+
+double RangeGraph::lossConsistency() const {
+  // E[w(z) z^2] / E[w(z)] for z ~ N(0, 1), by the midpoint rule over +-10: the factor by which
+  // the robust weights shrink a Gaussian's variance estimate (1 without a loss).
+  double num = 0.0, den = 0.0;
+  const double h = 1e-3;
+  for (double z = -10.0 + 0.5 * h; z < 10.0; z += h) {
+    const double pdf = std::exp(-0.5 * z * z), w = lossWeight(z);
+    num += w * z * z * pdf;
+    den += w * pdf;
+  }
+  return num / den;
+}
+
+std::optional<VarianceComponents> RangeGraph::estimateVarianceComponents() {
+  if (!problem_ || ranges_.empty()) return std::nullopt;
+  ceres::Problem& p = *problem_;
+  std::vector<std::pair<const double*, const double*>> blocks;
+  int free_bias = 0;
+  for (auto& x : poses_)
+    if (!p.IsParameterBlockConstant(x.data())) blocks.emplace_back(x.data(), x.data());
+  for (auto& b : biases_)
+    if (!p.IsParameterBlockConstant(&b)) {
+      blocks.emplace_back(&b, &b);
+      ++free_bias;
+    }
+  ceres::Covariance::Options options;
+  options.num_threads = params_.threads > 0 ? params_.threads : 1;
+  ceres::Covariance covariance(options);
+  if (!covariance.Compute(blocks, &p)) return std::nullopt;
+  std::vector<Eigen::Matrix3d> pose_cov(poses_.size(), Eigen::Matrix3d::Zero());
+  for (size_t i = 0; i < poses_.size(); ++i) {
+    if (p.IsParameterBlockConstant(poses_[i].data())) continue;
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+    if (!covariance.GetCovarianceBlockInTangentSpace(poses_[i].data(), poses_[i].data(), c.data()))
+      return std::nullopt;
+    pose_cov[i] = c;
+  }
+  double bias_prior_leverage = 0.0;
+  for (auto& b : biases_) {
+    if (p.IsParameterBlockConstant(&b)) continue;
+    double v = 0.0;
+    if (!covariance.GetCovarianceBlock(&b, &b, &v)) return std::nullopt;
+    bias_prior_leverage += v / (params_.bias_prior_sigma * params_.bias_prior_sigma);
+  }
+  // The range group. Leverage of one edge: w J Sigma J^T / sigma^2 (pose part); a free bias adds
+  // about one leverage to its anchor's edges (less its prior's share).
+  const double sigma = params_.range_sigma;
+  double weighted_sq = 0.0, redundancy = 0.0;
+  for (const auto& r : ranges_) {
+    Eigen::Vector3d g;
+    const double e = rangeResidual(r, &g);
+    const double w = lossWeight(e / sigma);
+    const double h = w * g.dot(pose_cov[static_cast<size_t>(r.pose)] * g) / (sigma * sigma);
+    weighted_sq += w * e * e;
+    redundancy += w - h;
+  }
+  redundancy -= free_bias - bias_prior_leverage;
+  if (redundancy <= 1.0) return std::nullopt;
+  VarianceComponents out;
+  out.range_sigma = std::sqrt(weighted_sq / (redundancy * lossConsistency()));
+  out.range_redundancy = redundancy;
+  if (!std::isfinite(out.range_sigma)) return std::nullopt;
+  return out;
+}
+
+std::vector<AnchorResiduals> RangeGraph::anchorResiduals(bool with_bias_std) {
+  std::vector<std::vector<double>> raw(anchors_.size()), centred(anchors_.size());
+  for (const auto& r : ranges_) {
+    const double e = rangeResidual(r, nullptr);
+    raw[static_cast<size_t>(r.anchor)].push_back(e + biases_[static_cast<size_t>(r.anchor)]);
+    centred[static_cast<size_t>(r.anchor)].push_back(e);
+  }
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    const size_t m = v.size() / 2;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(m), v.end());
+    return v[m];
+  };
+  std::optional<ceres::Covariance> covariance;
+  std::vector<std::pair<const double*, const double*>> blocks;
+  if (with_bias_std && problem_ && params_.estimate_bias) {
+    for (auto& b : biases_) blocks.emplace_back(&b, &b);
+    ceres::Covariance::Options options;
+    covariance.emplace(options);
+    if (!covariance->Compute(blocks, problem_.get())) covariance.reset();
+  }
+  std::vector<AnchorResiduals> out;
+  for (size_t i = 0; i < anchors_.size(); ++i) {
+    AnchorResiduals a;
+    a.anchor_id = anchors_[i].id;
+    a.ranges = static_cast<long>(raw[i].size());
+    a.bias = biases_[i];
+    a.median = median(raw[i]);
+    const double m = median(centred[i]);
+    for (auto& e : centred[i]) e = std::abs(e - m);
+    a.robust_sigma = 1.4826 * median(centred[i]);
+    double v = 0.0;
+    if (covariance && covariance->GetCovarianceBlock(&biases_[i], &biases_[i], &v))
+      a.bias_std = std::sqrt(std::max(v, 0.0));
+    out.push_back(a);
+  }
   return out;
 }
 

@@ -8,6 +8,11 @@
 
 namespace uwbloc::loc {
 
+namespace {
+/// bias=auto judges an anchor from at least this many ranges.
+constexpr long kMinRangesForBias = 20;
+}  // namespace
+
 GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorContext& context)
     : UwbEstimator(params.front, context.anchors), params_(params), context_(context) {
   if (!context.initial_pose)
@@ -23,10 +28,10 @@ GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorC
 
 graph::RangeGraphParams GraphSmoother::graphParams() const {
   graph::RangeGraphParams p;
-  p.range_sigma = params_.front.sigma;
+  p.range_sigma = params_.front.sigmaValue();
   p.loss = params_.loss;
   p.loss_scale = params_.loss_scale;
-  p.estimate_bias = params_.estimate_bias;
+  p.estimate_bias = params_.bias == BiasMode::kOn;
   p.estimate_anchors = params_.estimate_anchors;
   p.anchor_prior_sigma = params_.anchor_prior;
   p.max_iterations = params_.iterations;
@@ -271,6 +276,57 @@ void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& t
   }
 }
 
+bool GraphSmoother::solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p) {
+  g.build(p);
+  if (g.solve().usable) return true;
+  countRejection("graph_not_usable");
+  return false;
+}
+
+// sigma=auto: Helmert variance-component estimation of the range std, alternated with solves
+// until it settles (the odometry model stays as given: scaling both groups lets the path absorb
+// slow range errors). It runs without biases: the std it finds then counts the slow, per-anchor
+// part of the error too, which a bias removes only on average. bias=auto then frees the biases
+// when an anchor's median residual exceeds its robust spread, and solves once more.
+void GraphSmoother::solveBatch(graph::RangeGraph& g) {
+  graph::RangeGraphParams p = graphParams();
+  const bool auto_sigma = params_.front.sigma.isAuto();
+  if (auto_sigma || params_.bias == BiasMode::kAuto) p.estimate_bias = false;
+  if (!solveOnce(g, p)) return;
+  if (auto_sigma) {
+    for (int round = 0; round < params_.noise_rounds; ++round) {
+      const auto vc = g.estimateVarianceComponents();
+      if (!vc) {
+        ++stats_.events["noise_estimate_failed"];
+        break;
+      }
+      const double sigma = std::clamp(vc->range_sigma, 1e-3, 1e3);
+      const bool settled = std::abs(sigma / p.range_sigma - 1.0) < 0.02;
+      p.range_sigma = sigma;
+      if (settled) break;
+      if (!solveOnce(g, p)) return;
+    }
+    stats_.estimated_range_sigma = p.range_sigma;
+  }
+  if (params_.bias == BiasMode::kAuto) {
+    bool biased = false;
+    for (const auto& a : g.anchorResiduals())
+      biased |= a.ranges >= kMinRangesForBias && std::abs(a.median) > a.robust_sigma;
+    if (biased) {
+      ++stats_.events["range_bias_estimated"];
+      p.estimate_bias = true;
+      if (!solveOnce(g, p)) return;
+    }
+  } else if (p.estimate_bias != (params_.bias == BiasMode::kOn)) {
+    p.estimate_bias = params_.bias == BiasMode::kOn;
+    if (!solveOnce(g, p)) return;
+  }
+  for (const auto& a : g.anchorResiduals())
+    if (a.ranges > 0)
+      stats_.estimated_noise[a.anchor_id] = {p.estimate_bias ? a.bias : a.median, a.robust_sigma,
+                                             a.ranges};
+}
+
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   if (online()) return finishWindow();
   if (front_) {
@@ -284,8 +340,7 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   if (icp_ && front_) addIcpEdges(g, times);
   if (front_ && !corners_.empty()) addLandmarks(g, times);
   addRanges(g, times);
-  g.build(graphParams());
-  if (!g.solve().usable) countRejection("graph_not_usable");
+  solveBatch(g);
   std::vector<PoseEstimate> out;
   out.reserve(g.poses());
   const auto covariances =

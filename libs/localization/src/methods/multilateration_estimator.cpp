@@ -15,7 +15,7 @@ MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
 
 std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
-  const auto planar = toPlanar(epoch, params_.front.sigma);
+  const auto planar = toPlanar(epoch, params_.front.sigmaValue());
   const uwb::Fix fix = multilaterate(solver_, planar);
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));

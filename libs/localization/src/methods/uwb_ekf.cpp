@@ -50,7 +50,7 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
     // Start from the first epoch that multilaterates (Gauss-Newton).
     auto epoch = init_epochs_.add(*accepted);
     if (!epoch) return std::nullopt;
-    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigma));
+    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
     if (!fix.ok()) {
       countRejection(std::string("init_") + uwb::toString(fix.status));
       return std::nullopt;
@@ -71,7 +71,7 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
   Eigen::Matrix<double, 1, 4> hj;
   const int id = accepted->measurement.anchor_id;
   // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
-  const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigma);
+  const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigmaValue());
   const auto inn = innovate(*accepted, &hj);
   const double innovation = inn.y(0);
   const bool in_gate = kalman::inGate(inn, uwb::ChiSquareGate(params_.gate));

@@ -12,7 +12,7 @@ UwbKf::UwbKf(const UwbKfParams& params, const EstimatorContext& context)
 }
 
 std::optional<PoseEstimate> UwbKf::onEpoch(const std::vector<AcceptedRange>& epoch) {
-  const auto planar = toPlanar(epoch, params_.front.sigma);
+  const auto planar = toPlanar(epoch, params_.front.sigmaValue());
   const uwb::Fix fix = multilaterate(params_.solver, planar);
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));

@@ -104,7 +104,7 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   const double d = r.measurement.range;
   Eigen::RowVector3d j;
   const double d_hat = uwb::predictRange(e.mean, tag, r.anchor, &j);
-  const double sigma = params_.front.sigma;
+  const double sigma = params_.front.sigmaValue();
   // The pose test: innovation d - d̂ against S = sigma^2 + J P J^T, gated at k sigma.
   const double s = sigma * sigma + (j * e.covariance * j.transpose())(0, 0);
   RangeDecision dec;
@@ -142,7 +142,7 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
 }
 
 double UwbRangeMeasurement::addLogLikelihood(double l, double x, double y, double theta) const {
-  const double inv2 = 1.0 / (2.0 * params_.front.sigma * params_.front.sigma);
+  const double inv2 = 1.0 / (2.0 * params_.front.sigmaValue() * params_.front.sigmaValue());
   for (const auto& r : used_) {
     const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
     l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs

@@ -62,6 +62,8 @@ struct MethodSummary {
   long accepted_ranges = 0;
   long resets = 0;
   std::map<std::string, long> events;  ///< non-rejection events by name (first run)
+  std::map<int, loc::NoiseEstimate> estimated_noise;  ///< per anchor id (first run)
+  std::optional<double> estimated_range_sigma;        ///< the model's range std (first run)
   std::vector<loc::ParamInfo> parameters;
   std::vector<loc::PoseEstimate> trajectory;        ///< of the first run
   std::vector<loc::RangeDecision> range_decisions;  ///< of the first run (NLOS-judging methods)

@@ -35,6 +35,13 @@ struct RangeDecision {
   bool used = false;          ///< it weighted the particles
 };
 
+/// A range model learnt from the data for one anchor (per link).
+struct NoiseEstimate {
+  double bias = 0.0;   ///< range bias: measured minus true distance [m]
+  double sigma = 0.0;  ///< range std about the bias [m]
+  long ranges = 0;     ///< ranges it was estimated from
+};
+
 struct EstimatorStatistics {
   std::vector<RangeDecision> range_decisions;
   std::map<std::string, long> rejected;                           ///< reason -> count
@@ -44,6 +51,10 @@ struct EstimatorStatistics {
   /// Things the method did that are not rejections, by name: PF-IBAS's diversity injections
   /// ("swarm_diversity_injection"), epochs whose NLOS test was suspended ("nlos_test_suspended").
   std::map<std::string, long> events;
+  /// Per anchor id: the bias and noise the method estimated (empty: it estimates none).
+  std::map<int, NoiseEstimate> estimated_noise;
+  /// The range std the method ended with, when it estimates one (`sigma=auto`).
+  std::optional<double> estimated_range_sigma;
 };
 
 /// Counts one rejection by reason (and by anchor when anchor_id >= 0).

@@ -12,8 +12,11 @@
 
 namespace uwbloc::loc {
 
+/// The range std a method starts from when `sigma=auto` and the data has not told it yet [m].
+constexpr double kStartRangeSigma = 0.15;
+
 struct RangeFrontEndParams {
-  double sigma = 0.15;         ///< range standard deviation [m]
+  AutoDouble sigma;            ///< range standard deviation [m]; auto: estimated from the data
   double max_range = 100.0;    ///< longer ranges are rejected [m]
   bool increment_gate = true;  ///< apply the increment-queue gate
   int iq_length = 5;           ///< increment queue length n
@@ -21,9 +24,14 @@ struct RangeFrontEndParams {
   double iq_max_speed = 2.0;   ///< fastest plausible tag speed [m/s]
   double iq_floor = 0.3;       ///< increment tolerance for noise [m]
 
+  /// The fixed std, or the starting one when auto.
+  double sigmaValue() const { return sigma.value.value_or(kStartRangeSigma); }
+
   template <class V>
   void visit(V&& v) {
-    v("sigma", sigma, "range standard deviation [m]");
+    v("sigma", sigma,
+      "range standard deviation [m]; auto: estimated from the residuals where the method can "
+      "(graph), else 0.15");
     v("max_range", max_range, "ranges beyond this are rejected [m]");
     v("iq", increment_gate, "increment-queue gate on/off");
     v("iq_n", iq_length, "increment queue length");

@@ -41,6 +41,26 @@ struct RangeGraphParams {
   int threads = 0;  ///< Ceres threads; 0: every core of the machine
 };
 
+/// The range edges' variance component from a solved graph (Helmert's estimator with the robust
+/// loss's weights): their weighted squared residuals over their redundancy, the part of them
+/// the solution did not absorb (sum of w - leverage, the leverage from the poses' marginal
+/// covariances), divided by the loss's consistency factor E[w z^2] / E[w] for Gaussian z
+/// (0.746 for the Cauchy loss at 2 std) so that Gaussian noise gives its own std.
+struct VarianceComponents {
+  double range_sigma = 0.0;       ///< re-estimated range std [m]
+  double range_redundancy = 0.0;  ///< sum over the range edges of (w - leverage)
+};
+
+/// Residual statistics of one anchor's range edges after a solve.
+struct AnchorResiduals {
+  int anchor_id = 0;
+  long ranges = 0;
+  double bias = 0.0;           ///< the solved bias (0 when not estimated) [m]
+  double bias_std = 0.0;       ///< its marginal std, when computed [m]
+  double median = 0.0;         ///< median of z - predicted distance (bias not subtracted) [m]
+  double robust_sigma = 0.0;   ///< 1.4826 MAD of z - predicted - bias [m]
+};
+
 struct GraphSolution {
   bool usable = false;  ///< ceres' IsSolutionUsable()
   int iterations = 0;
@@ -81,6 +101,13 @@ class RangeGraph {
   /// anchors are estimated, the first anchor and the first pose are held constant (see build()).
   void build(const RangeGraphParams& params);
   GraphSolution solve();
+  /// After solve(): the range edges' variance component. Needs the marginal covariances of the
+  /// free pose and bias blocks; nothing when they cannot be computed or when the ranges have no
+  /// redundancy.
+  std::optional<VarianceComponents> estimateVarianceComponents();
+  /// After solve(): each anchor's range residuals; bias_std is filled when `with_bias_std` and
+  /// biases were estimated.
+  std::vector<AnchorResiduals> anchorResiduals(bool with_bias_std = false);
   /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
   void holdPose(int pose);
 
@@ -120,6 +147,12 @@ class RangeGraph {
   std::vector<LandmarkObs> landmark_obs_;
   RangeGraphParams params_;
   std::unique_ptr<ceres::Problem> problem_;
+  /// z - distance(pose, anchor) - bias of one range edge, and its gradient in the pose.
+  double rangeResidual(const Range& r, Eigen::Vector3d* gradient) const;
+  /// The robust loss's weight rho'(s^2) at a whitened residual s.
+  double lossWeight(double whitened) const;
+  /// E[w z^2] / E[w] under a standard normal: the robust weights' shrinkage of a variance.
+  double lossConsistency() const;
 };
 
 }  // namespace uwbloc::loc::graph

@@ -9,6 +9,7 @@
 //    Mahalanobis gate from the front end's poses, kept when seen `landmark_min_obs` times).
 #pragma once
 
+#include <array>
 #include <memory>
 
 #include "uwbloc/localization/graph/range_graph.hpp"
@@ -16,6 +17,12 @@
 #include "uwbloc/localization/range_front_end.hpp"
 
 namespace uwbloc::loc {
+
+/// Per-anchor range bias: never, always, or (auto) when the residuals show one.
+enum class BiasMode { kOff, kOn, kAuto };
+constexpr std::array<EnumName<BiasMode>, 3> enumNames(BiasMode) {
+  return {{{BiasMode::kOff, "0"}, {BiasMode::kOn, "1"}, {BiasMode::kAuto, "auto"}}};
+}
 
 struct GraphSmootherParams {
   RangeFrontEndParams front;  ///< range checks; sigma is the range edges' std
@@ -25,7 +32,8 @@ struct GraphSmootherParams {
   double odom_sigma_xy_per_m = 0.05;                    ///< ... plus this per metre moved
   double odom_sigma_theta = 0.005;                      ///< per increment [rad] ...
   double odom_sigma_theta_per_rad = 0.05;               ///< ... plus this per radian turned
-  bool estimate_bias = false;                           ///< a range bias per anchor
+  BiasMode bias = BiasMode::kAuto;                      ///< a range bias per anchor
+  int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
   bool estimate_anchors = false;                        ///< anchors' x, y with a prior
   double anchor_prior = 0.5;                            ///< [m]
   int iterations = 100;
@@ -51,7 +59,11 @@ struct GraphSmootherParams {
     v("odom_xy_per_m", odom_sigma_xy_per_m, "odometry edge std per metre moved");
     v("odom_th", odom_sigma_theta, "odometry edge heading std per increment [rad]");
     v("odom_th_per_rad", odom_sigma_theta_per_rad, "odometry edge heading std per radian turned");
-    v("bias", estimate_bias, "estimate a range bias per anchor");
+    v("bias", bias,
+      "a range bias per anchor: 0, 1 or auto (when an anchor's median residual exceeds its "
+      "residual spread)");
+    v("noise_rounds", noise_rounds,
+      "sigma=auto: variance-component re-estimates of the range std (each a re-solve)");
     v("anchors", estimate_anchors, "self-calibrate the anchors (x, y)");
     v("anchor_prior", anchor_prior, "anchor prior std [m]");
     v("iterations", iterations, "solver iterations");
@@ -119,6 +131,11 @@ class GraphSmoother : public UwbEstimator {
   /// Sliding-window mode (needs a front end); otherwise everything is kept for one batch solve.
   bool online() const { return front_ && params_.window > 0; }
   graph::RangeGraphParams graphParams() const;
+  /// Solves the batch graph: with sigma=auto, the range std by variance-component estimation
+  /// first (no bias), then the biases when `bias` says so; fills the estimated noise.
+  void solveBatch(graph::RangeGraph& g);
+  /// Solves; counts an unusable solution and returns false.
+  bool solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   Eigen::Vector3d priorSigma(const PoseEstimate& e) const;
   double first_t_ = 0.0;
   bool started_ = false;

@@ -59,7 +59,7 @@ class UwbEkf : public UwbEstimator {
   /// Steps (1)-(3) of the update for one range, and its Jacobian.
   kalman::Innovation<1> innovate(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const;
   Eigen::Matrix<double, 1, 1> rangeNoise() const {
-    return Eigen::Matrix<double, 1, 1>(params_.front.sigma * params_.front.sigma);
+    return Eigen::Matrix<double, 1, 1>(params_.front.sigmaValue() * params_.front.sigmaValue());
   }
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
