@@ -272,40 +272,34 @@ std::optional<VarianceComponents> RangeGraph::estimateVarianceComponents() {
   return out;
 }
 
-std::vector<AnchorResiduals> RangeGraph::anchorResiduals(bool with_bias_std) {
+std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
   std::vector<std::vector<double>> raw(anchors_.size()), centred(anchors_.size());
   for (const auto& r : ranges_) {
     const double e = rangeResidual(r, nullptr);
     raw[static_cast<size_t>(r.anchor)].push_back(e + biases_[static_cast<size_t>(r.anchor)]);
     centred[static_cast<size_t>(r.anchor)].push_back(e);
   }
-  auto median = [](std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    const size_t m = v.size() / 2;
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(m), v.end());
-    return v[m];
+  auto median = [](std::vector<double>::const_iterator begin,
+                   std::vector<double>::const_iterator end) {
+    if (begin == end) return 0.0;
+    std::vector<double> v(begin, end);
+    const auto m = static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), v.begin() + m, v.end());
+    return v[static_cast<size_t>(m)];
   };
-  std::optional<ceres::Covariance> covariance;
-  std::vector<std::pair<const double*, const double*>> blocks;
-  if (with_bias_std && problem_ && params_.estimate_bias) {
-    for (auto& b : biases_) blocks.emplace_back(&b, &b);
-    ceres::Covariance::Options options;
-    covariance.emplace(options);
-    if (!covariance->Compute(blocks, problem_.get())) covariance.reset();
-  }
   std::vector<AnchorResiduals> out;
   for (size_t i = 0; i < anchors_.size(); ++i) {
     AnchorResiduals a;
     a.anchor_id = anchors_[i].id;
     a.ranges = static_cast<long>(raw[i].size());
     a.bias = biases_[i];
-    a.median = median(raw[i]);
-    const double m = median(centred[i]);
+    const auto half = raw[i].begin() + static_cast<std::ptrdiff_t>(raw[i].size() / 2);
+    a.median = median(raw[i].begin(), raw[i].end());
+    a.median_first_half = median(raw[i].begin(), half);
+    a.median_second_half = median(half, raw[i].end());
+    const double m = median(centred[i].begin(), centred[i].end());
     for (auto& e : centred[i]) e = std::abs(e - m);
-    a.robust_sigma = 1.4826 * median(centred[i]);
-    double v = 0.0;
-    if (covariance && covariance->GetCovarianceBlock(&biases_[i], &biases_[i], &v))
-      a.bias_std = std::sqrt(std::max(v, 0.0));
+    a.robust_sigma = 1.4826 * median(centred[i].begin(), centred[i].end());
     out.push_back(a);
   }
   return out;

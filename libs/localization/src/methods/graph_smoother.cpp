@@ -97,15 +97,7 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
       front_estimate = e;
     }
   }
-  if (front_estimate && online()) {
-    // A new vertex: the front end's estimate, the odometry and ranges since the last one.
-    window_.push_back(
-        {*front_estimate, front_estimate->pose, odometry_since_vertex_, ranges_since_vertex_});
-    odometry_since_vertex_.setZero();
-    ranges_since_vertex_.clear();
-    if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
-    out = solveWindow();
-  }
+  if (front_estimate && online()) out = addWindowVertex(*front_estimate);
   if (const auto* scan = std::get_if<LaserScan>(&event)) {
     if (front_ && params_.landmarks && !online()) {
       const LandmarkExtractionParams ex;
@@ -118,17 +110,38 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
       countRejection("non_finite_odometry");
       return out;
     }
-    if (!online()) odometry_.push_back(*odo);
-    odometry_since_vertex_ = composePose(odometry_since_vertex_, odo->delta);
+    if (online())
+      odometry_pending_.push_back(*odo);
+    else
+      odometry_.push_back(*odo);
     return out;
   }
   if (const auto accepted = acceptRange(event)) {
     if (!online())
       ranges_.push_back(*accepted);
     else
-      ranges_since_vertex_.push_back(*accepted);
+      ranges_pending_.push_back(*accepted);
   }
   return out;
+}
+
+// A new vertex at the front end's estimate, with the odometry and the ranges up to its time that
+// are not yet on a vertex: sliced by time, because the front end may hand estimates out late
+// (a particle filter learning its range model). Odometry stamped with the estimate's own time is
+// the motion that led there (MRPT rawlogs store the action before the observations).
+std::optional<PoseEstimate> GraphSmoother::addWindowVertex(const PoseEstimate& e) {
+  WindowVertex v{e, e.pose, Eigen::Vector3d::Zero(), {}};
+  while (!odometry_pending_.empty() && odometry_pending_.front().t <= e.t) {
+    v.odometry_before = composePose(v.odometry_before, odometry_pending_.front().delta);
+    odometry_pending_.pop_front();
+  }
+  while (!ranges_pending_.empty() && ranges_pending_.front().measurement.t <= e.t) {
+    v.ranges.push_back(ranges_pending_.front());
+    ranges_pending_.pop_front();
+  }
+  window_.push_back(std::move(v));
+  if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
+  return solveWindow();
 }
 
 void GraphSmoother::mergeFrontStatistics() {
@@ -149,13 +162,8 @@ std::vector<PoseEstimate> GraphSmoother::finishWindow() {
   std::vector<PoseEstimate> out;
   auto rest = front_->finishAll();
   mergeFrontStatistics();
-  for (auto& e : rest) {
-    window_.push_back({e, e.pose, odometry_since_vertex_, ranges_since_vertex_});
-    odometry_since_vertex_.setZero();
-    ranges_since_vertex_.clear();
-    if (window_.size() > static_cast<size_t>(params_.window)) window_.erase(window_.begin());
-    if (auto w = solveWindow()) out.push_back(*w);
-  }
+  for (auto& e : rest)
+    if (auto w = addWindowVertex(e)) out.push_back(*w);
   // The poses still inside the last window.
   for (const auto& w : window_)
     if (w.front.t > last_output_t_) {
@@ -311,7 +319,7 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   if (params_.bias == BiasMode::kAuto) {
     bool biased = false;
     for (const auto& a : g.anchorResiduals())
-      biased |= a.ranges >= kMinRangesForBias && std::abs(a.median) > a.robust_sigma;
+      biased |= a.ranges >= kMinRangesForBias && biasStandsOut(a.median_first_half, a.median_second_half, a.robust_sigma);
     if (biased) {
       ++stats_.events["range_bias_estimated"];
       p.estimate_bias = true;

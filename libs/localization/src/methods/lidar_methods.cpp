@@ -44,10 +44,11 @@ void addLidarMethods(Registry& r) {
   r.add(pfMethod<Lidar>("lidar-mcl",
                         "LiDAR only: Monte-Carlo localisation on the map's likelihood field",
                         {"scans", "odometry", "map"}, {{"landmarks", "1"}}));
+  // The textbook baseline: no NLOS test and the fixed range model it starts with.
   r.add(pfMethod<Lidar, Uwb>("fused-naive",
                              "LiDAR + UWB particle filter, likelihoods multiplied, no NLOS "
-                             "rejection",
-                             fused, {{"nlos", "none"}}));
+                             "rejection, no learnt range model",
+                             fused, {{"nlos", "none"}, {"calib", "0"}}));
   r.add(pfMethod<Lidar, Uwb>("fused-pf",
                              "LiDAR + UWB particle filter with NLOS rejection from the LiDAR pose",
                              fused, {}));

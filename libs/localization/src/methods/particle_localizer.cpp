@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "uwbloc/localization/lidar/occupancy_map.hpp"
+#include "uwbloc/localization/registry.hpp"
 
 namespace uwbloc::loc {
 
@@ -58,6 +59,12 @@ ParticleLocalizer::ParticleLocalizer(const ParticleCoreParams& core,
     throw ParamError("init=global needs a map: give the manifest's [dataset] map");
   if (core_.init == InitMode::kTracking && !context.initial_pose)
     throw ParamError("tracking initialisation needs a start pose (the dataset's ground truth)");
+  // The learning method smooths from the start pose; without one the model stays as given.
+  for (const auto& m : measurements_)
+    if (const auto c = m->calibration(); c && context.initial_pose) {
+      calibrator_ = Registry::builtin().create(c->first, context);
+      calib_span_ = c->second;
+    }
 }
 
 std::vector<std::pair<std::string, std::string>> ParticleLocalizer::artifacts() const {
@@ -97,12 +104,49 @@ std::optional<PoseEstimate> ParticleLocalizer::finishEpoch() {
   return est;
 }
 
+void ParticleLocalizer::endCalibration() {
+  calibrator_->finishAll();
+  for (auto& m : measurements_) m->calibrate(calibrator_->statistics(), stats_);
+  ++stats_.events["range_model_learnt"];
+  calibrator_.reset();
+  for (const auto& e : kept_)
+    if (auto out = step(e)) pending_.push_back(*out);
+  kept_.clear();
+  kept_.shrink_to_fit();
+}
+
+std::vector<PoseEstimate> ParticleLocalizer::doFinishAll() {
+  if (calibrator_) endCalibration();
+  std::vector<PoseEstimate> out(pending_.begin(), pending_.end());
+  pending_.clear();
+  if (epoch_open_) out.push_back(*finishEpoch());
+  return out;
+}
+
 std::optional<PoseEstimate> ParticleLocalizer::doFinish() {
-  if (epoch_open_) return finishEpoch();
-  return std::nullopt;
+  auto all = doFinishAll();
+  if (all.empty()) return std::nullopt;
+  return all.back();
 }
 
 std::optional<PoseEstimate> ParticleLocalizer::doProcess(const Event& event) {
+  if (calibrator_) {
+    const double t = eventTime(event);
+    if (!calib_t0_) calib_t0_ = t;
+    kept_.push_back(event);
+    calibrator_->process(event);
+    if (t - *calib_t0_ < calib_span_) return std::nullopt;
+    endCalibration();
+  } else if (auto out = step(event)) {
+    pending_.push_back(*out);
+  }
+  if (pending_.empty()) return std::nullopt;
+  PoseEstimate out = pending_.front();
+  pending_.pop_front();
+  return out;
+}
+
+std::optional<PoseEstimate> ParticleLocalizer::step(const Event& event) {
   if (!pf_.initialised()) initialise();
   const double t = eventTime(event);
   std::optional<PoseEstimate> out;

@@ -9,6 +9,7 @@ UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
       params_(params),
       init_epochs_(params.epoch_window) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
+  if (params.start == EkfStart::kStartPose) start_pose_ = context.initial_pose;
 }
 
 void UwbEkf::reset() {
@@ -42,28 +43,43 @@ PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
                               heading_.heading());
 }
 
+// The first start at the start pose (at rest, position std start_sigma), when there is one;
+// otherwise, and after divergence, at the first epoch that multilaterates (Gauss-Newton).
+bool UwbEkf::initialise(const AcceptedRange& r) {
+  if (start_pose_) {
+    x_ << start_pose_->x(), start_pose_->y(), 0.0, 0.0;
+    p_ = Eigen::Vector4d(params_.start_sigma * params_.start_sigma,
+                         params_.start_sigma * params_.start_sigma, 1.0, 1.0)
+             .asDiagonal();
+    start_pose_.reset();
+    t_ = r.measurement.t;
+  } else {
+    auto epoch = init_epochs_.add(r);
+    if (!epoch) return false;
+    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
+    if (!fix.ok()) {
+      countRejection(std::string("init_") + uwb::toString(fix.status));
+      return false;
+    }
+    if (fix.residual_norm > params_.init_residual) {
+      countRejection("init_inconsistent_fix");  // some range of the epoch is wrong
+      return false;
+    }
+    kalman::initialiseFromFix(fix, x_, p_);
+    t_ = epochTime(*epoch);
+  }
+  quarantine_.clear();
+  initialised_ = true;
+  gated_in_a_row_ = 0;
+  return true;
+}
+
 std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
   const auto accepted = acceptRange(event);
   if (!accepted) return std::nullopt;
 
   if (!initialised_) {
-    // Start from the first epoch that multilaterates (Gauss-Newton).
-    auto epoch = init_epochs_.add(*accepted);
-    if (!epoch) return std::nullopt;
-    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
-    if (!fix.ok()) {
-      countRejection(std::string("init_") + uwb::toString(fix.status));
-      return std::nullopt;
-    }
-    if (fix.residual_norm > params_.init_residual) {
-      countRejection("init_inconsistent_fix");  // some range of the epoch is wrong
-      return std::nullopt;
-    }
-    quarantine_.clear();
-    kalman::initialiseFromFix(fix, x_, p_);
-    t_ = epochTime(*epoch);
-    initialised_ = true;
-    gated_in_a_row_ = 0;
+    if (!initialise(*accepted)) return std::nullopt;
     return output(accepted->measurement.tag_on_robot);
   }
 

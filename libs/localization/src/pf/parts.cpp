@@ -1,5 +1,7 @@
 #include "uwbloc/localization/pf/parts.hpp"
 
+#include <sstream>
+
 #include <Eigen/Dense>
 #include <cmath>
 #include <cstdio>
@@ -62,7 +64,8 @@ UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
       front_(params.front, anchors),
       map_(std::move(map)),
       nlos_reason_(std::string("nlos_") + enumName(params.nlos)),
-      pose_gate_(params.nlos_k * params.nlos_k) {
+      pose_gate_(params.nlos_k * params.nlos_k),
+      noise_(params.front.sigmaValue()) {
   if (params_.nlos == NlosTest::kRaycast && !map_)
     throw ParamError("nlos=raycast needs a map: give the manifest's [dataset] map");
 }
@@ -79,6 +82,21 @@ bool UwbRangeMeasurement::take(const Event& event, EstimatorStatistics& stats) {
   ++stats.accepted_ranges;
   epoch_.push_back(*accepted);
   return true;
+}
+
+std::optional<std::pair<std::string, double>> UwbRangeMeasurement::calibration() const {
+  if (params_.calib <= 0.0 || (!params_.front.sigma.isAuto() && params_.bias == BiasMode::kOff))
+    return std::nullopt;
+  std::ostringstream spec;
+  spec << "graph-uwb-odom:sigma=" << params_.front.sigma << ",bias=" << enumName(params_.bias);
+  return std::pair{spec.str(), params_.calib};
+}
+
+void UwbRangeMeasurement::calibrate(const EstimatorStatistics& learnt, EstimatorStatistics& stats) {
+  const bool biased = params_.bias == BiasMode::kOn || learnt.events.count("range_bias_estimated");
+  noise_.learn(learnt.estimated_noise, biased,
+               params_.front.sigma.isAuto() ? learnt.estimated_range_sigma : std::nullopt);
+  noise_.report(stats);
 }
 
 bool UwbRangeMeasurement::suspended() const {
@@ -101,16 +119,19 @@ void UwbRangeMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stats)
 void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r,
                                       const ParticleEstimate& e, EstimatorStatistics& stats) {
   const Eigen::Vector3d& tag = r.measurement.tag_on_robot;
-  const double d = r.measurement.range;
   Eigen::RowVector3d j;
   const double d_hat = uwb::predictRange(e.mean, tag, r.anchor, &j);
-  const double sigma = params_.front.sigmaValue();
+  const double state_variance = (j * e.covariance * j.transpose())(0, 0);
+  // The test and the likelihood judge the range with its anchor's learnt bias removed: a
+  // consistent bias is not NLOS.
+  const double d = r.measurement.range - noise_.bias(r.measurement.anchor_id);
+  const double sigma = noise_.sigma();
   // The pose test: innovation d - d̂ against S = sigma^2 + J P J^T, gated at k sigma.
-  const double s = sigma * sigma + (j * e.covariance * j.transpose())(0, 0);
+  const double s = sigma * sigma + state_variance;
   RangeDecision dec;
   dec.t = r.measurement.t;
   dec.anchor_id = r.measurement.anchor_id;
-  dec.range = d;
+  dec.range = r.measurement.range;
   dec.flag_pose = !pose_gate_.accept(d - d_hat, s);
   if (map_) {
     const Eigen::Vector3d tag_world = uwb::tagPosition(e.mean, tag);
@@ -132,7 +153,10 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   }
   dec.used = true;
   stats.range_decisions.push_back(dec);
-  if (sig == sigma) used_.push_back(r);  // the swarm's fitness uses the clean ones
+  if (sig == sigma) {  // the swarm's fitness uses the clean ones
+    used_.push_back(r);
+    used_.back().measurement.range = d;
+  }
   const double inv2 = 1.0 / (2.0 * sig * sig);
   const Eigen::Vector3d anchor = r.anchor;
   pf.weight([&](double x, double y, double th) {
@@ -142,7 +166,7 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
 }
 
 double UwbRangeMeasurement::addLogLikelihood(double l, double x, double y, double theta) const {
-  const double inv2 = 1.0 / (2.0 * params_.front.sigmaValue() * params_.front.sigmaValue());
+  const double inv2 = 1.0 / (2.0 * noise_.sigma() * noise_.sigma());
   for (const auto& r : used_) {
     const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
     l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs

@@ -56,8 +56,8 @@ struct AnchorResiduals {
   int anchor_id = 0;
   long ranges = 0;
   double bias = 0.0;           ///< the solved bias (0 when not estimated) [m]
-  double bias_std = 0.0;       ///< its marginal std, when computed [m]
   double median = 0.0;         ///< median of z - predicted distance (bias not subtracted) [m]
+  double median_first_half = 0.0, median_second_half = 0.0;  ///< the same per half, in time [m]
   double robust_sigma = 0.0;   ///< 1.4826 MAD of z - predicted - bias [m]
 };
 
@@ -105,9 +105,8 @@ class RangeGraph {
   /// free pose and bias blocks; nothing when they cannot be computed or when the ranges have no
   /// redundancy.
   std::optional<VarianceComponents> estimateVarianceComponents();
-  /// After solve(): each anchor's range residuals; bias_std is filled when `with_bias_std` and
-  /// biases were estimated.
-  std::vector<AnchorResiduals> anchorResiduals(bool with_bias_std = false);
+  /// After solve(): each anchor's range residual statistics (ranges in the order added).
+  std::vector<AnchorResiduals> anchorResiduals() const;
   /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
   void holdPose(int pose);
 

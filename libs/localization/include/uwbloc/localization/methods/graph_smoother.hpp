@@ -10,19 +10,15 @@
 #pragma once
 
 #include <array>
+#include <deque>
 #include <memory>
 
 #include "uwbloc/localization/graph/range_graph.hpp"
 #include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 namespace uwbloc::loc {
-
-/// Per-anchor range bias: never, always, or (auto) when the residuals show one.
-enum class BiasMode { kOff, kOn, kAuto };
-constexpr std::array<EnumName<BiasMode>, 3> enumNames(BiasMode) {
-  return {{{BiasMode::kOff, "0"}, {BiasMode::kOn, "1"}, {BiasMode::kAuto, "auto"}}};
-}
 
 struct GraphSmootherParams {
   RangeFrontEndParams front;  ///< range checks; sigma is the range edges' std
@@ -125,8 +121,9 @@ class GraphSmoother : public UwbEstimator {
   };
   std::vector<WindowVertex> window_;
   double last_output_t_ = -1e300;
-  Eigen::Vector3d odometry_since_vertex_ = Eigen::Vector3d::Zero();
-  std::vector<AcceptedRange> ranges_since_vertex_;
+  std::deque<OdometryIncrement> odometry_pending_;  ///< not yet before a window vertex
+  std::deque<AcceptedRange> ranges_pending_;         ///< not yet on a window vertex
+  std::optional<PoseEstimate> addWindowVertex(const PoseEstimate& e);
   std::optional<PoseEstimate> solveWindow();
   /// Sliding-window mode (needs a front end); otherwise everything is kept for one batch solve.
   bool online() const { return front_ && params_.window > 0; }

@@ -6,8 +6,16 @@
 // At the epoch's close the measurement models weight the particles in order (the LiDAR first, so
 // that the UWB NLOS test judges ranges against the pose after the LiDAR update), then the
 // posterior step resamples or moves the particles, and the estimate is the weighted mean.
+//
+// A measurement model that learns from a batch (the UWB ranges with sigma=auto or a bias) makes
+// the filter start with a calibration: the events of the first `calib` seconds are kept and
+// given to the learning method (the range + odometry graph) as well; when the span is over (or
+// the stream ends) its model is taken and the kept events are filtered. Their estimates are
+// queued and handed out one per later event (or at the end), so a caller still gets at most one
+// per event, each with its own time, with a lag that the events without an estimate drain.
 #pragma once
 
+#include <deque>
 #include <memory>
 #include <tuple>
 #include <type_traits>
@@ -30,11 +38,18 @@ class ParticleLocalizer : public Estimator {
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
+  std::vector<PoseEstimate> doFinishAll() override;
+  /// The end of the stream for a caller that takes one estimate: the newest (finishAll() gives
+  /// every queued one).
   std::optional<PoseEstimate> doFinish() override;
   void reset() override { initialise(); }
 
  private:
   void initialise();
+  /// One event through the filter.
+  std::optional<PoseEstimate> step(const Event& event);
+  /// Ends the calibration: the learnt model to the parts, then the kept events filtered.
+  void endCalibration();
   std::optional<PoseEstimate> finishEpoch();
   /// The epoch's log-likelihood at one pose, summed over the measurement models.
   double epochLogLikelihood(double x, double y, double theta) const;
@@ -47,6 +62,12 @@ class ParticleLocalizer : public Estimator {
   EpochFitness fitness_;  ///< epochLogLikelihood, bound once
   double epoch_t_ = 0.0;
   bool epoch_open_ = false;
+  // Calibration (see above).
+  std::unique_ptr<Estimator> calibrator_;
+  double calib_span_ = 0.0;
+  std::optional<double> calib_t0_;
+  std::vector<Event> kept_;
+  std::deque<PoseEstimate> pending_;
 };
 
 /// The parameters of a particle-filter method: the filter's own, then one struct per part.

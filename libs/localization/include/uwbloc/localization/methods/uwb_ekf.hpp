@@ -20,8 +20,17 @@
 
 namespace uwbloc::loc {
 
+/// Where the filter starts: at the start pose (the manifest's, or the reference's first), or
+/// from the first epoch that multilaterates. Re-initialisations after divergence always use a fix.
+enum class EkfStart { kStartPose, kFix };
+constexpr std::array<EnumName<EkfStart>, 2> enumNames(EkfStart) {
+  return {{{EkfStart::kStartPose, "start"}, {EkfStart::kFix, "fix"}}};
+}
+
 struct UwbEkfParams {
   RangeFrontEndParams front;
+  EkfStart start = EkfStart::kStartPose;
+  double start_sigma = 0.5;         ///< std of the start pose's position [m]
   AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
@@ -34,6 +43,8 @@ struct UwbEkfParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
+    v("start", start, "start at the start pose (start) or at the first multilateration fix (fix)");
+    v("start_sigma", start_sigma, "std of the start pose's position [m]");
     v("window", epoch_window, "epoch window of the initial fix [s], or auto");
     v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
@@ -61,9 +72,11 @@ class UwbEkf : public UwbEstimator {
   Eigen::Matrix<double, 1, 1> rangeNoise() const {
     return Eigen::Matrix<double, 1, 1>(params_.front.sigmaValue() * params_.front.sigmaValue());
   }
+  bool initialise(const AcceptedRange& r);
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
   UwbEkfParams params_;
+  std::optional<Eigen::Vector3d> start_pose_;  ///< used once, for the first start
   EpochBuffer init_epochs_;
   HeadingFromMotion heading_;
   bool initialised_ = false;

@@ -22,6 +22,7 @@
 #include "uwbloc/localization/optim/optimizers.hpp"
 #include "uwbloc/localization/pf/particle_filter.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 namespace uwbloc::loc {
 
@@ -92,6 +93,9 @@ constexpr std::array<EnumName<NlosAction>, 2> enumNames(NlosAction) {
 /// The UWB measurement model: range checks, the range likelihood and the NLOS test.
 struct UwbPartParams {
   RangeFrontEndParams front;        ///< range checks; sigma is the range likelihood's std
+  BiasMode bias = BiasMode::kAuto;  ///< per-anchor range bias
+  /// sigma=auto or a bias: the range model is learnt by smoothing this many seconds first [s]
+  double calib = 60.0;
   NlosTest nlos = NlosTest::kPose;  ///< NLOS test
   double nlos_k = 3.0;              ///< gate width in standard deviations
   NlosAction nlos_action = NlosAction::kReject;
@@ -105,6 +109,11 @@ struct UwbPartParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
+    v("bias", bias,
+      "per-anchor range bias: 0, 1 or auto (when an anchor's median offset exceeds its spread)");
+    v("calib", calib,
+      "sigma=auto or bias: learn the range std and biases by smoothing (graph-uwb-odom) the "
+      "first this many seconds, then filter them again with it [s]; 0: learn nothing");
     v("nlos", nlos, "NLOS test on UWB ranges: pose, raycast or none");
     v("nlos_k", nlos_k, "NLOS gate width [std]");
     v("nlos_action", nlos_action, "reject or downweight flagged ranges");
@@ -165,6 +174,11 @@ class EpochMeasurement {
   /// Forgets the state after a re-initialisation.
   virtual void reset() {}
   virtual void addArtifacts(std::vector<std::pair<std::string, std::string>>&) const {}
+  /// A model that learns from a batch over the first seconds: the method spec that learns it
+  /// (run on those events) and how long the batch lasts [s]; nothing when it learns nothing.
+  virtual std::optional<std::pair<std::string, double>> calibration() const { return {}; }
+  /// Takes what that method learnt (its statistics after its finishAll()).
+  virtual void calibrate(const EstimatorStatistics&, EstimatorStatistics&) {}
 };
 
 /// Log-likelihood of the epoch's data at one pose, summed over the measurement models.
@@ -213,6 +227,8 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   double addLogLikelihood(double l, double x, double y, double theta) const override;
   void endEpoch(const PoseEstimate&) override { epoch_.clear(); }
   void reset() override { nlos_streak_ = 0; }
+  std::optional<std::pair<std::string, double>> calibration() const override;
+  void calibrate(const EstimatorStatistics& learnt, EstimatorStatistics& stats) override;
 
  private:
   /// The NLOS test of one range against the estimate e; weights the particles when it is used.
@@ -225,7 +241,9 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   std::shared_ptr<const OccupancyMap> map_;
   std::string nlos_reason_;                  ///< "nlos_<test>", built once
   uwb::ChiSquareGate pose_gate_;             ///< the pose test at k sigma (threshold k^2)
-  std::vector<AcceptedRange> epoch_, used_;  ///< used_: the clean ones, for the swarm's fitness
+  std::vector<AcceptedRange> epoch_;
+  std::vector<AcceptedRange> used_;  ///< the clean ones (bias removed), for the swarm's fitness
+  RangeNoiseModel noise_;
   int epoch_flagged_ = 0;                    ///< ranges of the open epoch that failed the NLOS test
   int nlos_streak_ = 0;                      ///< epochs in a row in which most ranges failed it
 };
