@@ -25,6 +25,7 @@ std::vector<std::unique_ptr<Command>> allCommands() {
   out.push_back(std::make_unique<SimulateCommand>());
   out.push_back(std::make_unique<AugmentCommand>());
   out.push_back(std::make_unique<BenchmarkCommand>());
+  out.push_back(std::make_unique<SensitivityCommand>());
   out.push_back(std::make_unique<BenchOptimizersCommand>());
   out.push_back(std::make_unique<MethodsCommand>());
   return out;

@@ -102,6 +102,19 @@ class BenchmarkCommand : public Command {
   int seeds_ = 5;
 };
 
+/// `sensitivity`: injected biases, noise and NLOS spans on a simulated scenario; defaults against
+/// the true model.
+class SensitivityCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::string scenario_ = "pfibas_room.ini", out_ = "runs/sensitivity", methods_;
+  int seeds_ = 3;
+  double duration_ = 240.0;
+};
+
 /// `methods`: every registered method with its parameters, defaults and meaning.
 class MethodsCommand : public Command {
  public:

@@ -152,6 +152,7 @@ void RangeGraph::build(const RangeGraphParams& params) {
                                Eigen::Matrix<double, 1, 1>::Constant(params_.bias_prior_sigma)),
           nullptr, &biases_[i]);
     } else {
+      biases_[i] = 0.0;  // a solve with biases may have left values
       p.SetParameterBlockConstant(&biases_[i]);
     }
   }
