@@ -1,0 +1,45 @@
+// The sensitivity harness on a short run of the simulated PF-IBAS room with the graph smoother:
+// its conditions, and what sigma=auto / bias=auto promise there (within 1.25x of the true model
+// for a noise std or a bias on every anchor). A bias on one anchor of three is the known gap
+// (the path absorbs it; see README) and is not asserted.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "test_helpers.hpp"
+#include "uwbloc/evaluation/sensitivity.hpp"
+
+using namespace uwbloc;
+
+TEST(Sensitivity, ConditionsCoverTheIssuesList) {
+  const auto c = eval::defaultConditions({1, 2, 3});
+  ASSERT_EQ(c.size(), 14u);
+  EXPECT_TRUE(c.front().bias.empty());
+  EXPECT_EQ(c[3].bias.size(), 1u);  // 3 m on one anchor
+  EXPECT_DOUBLE_EQ(c[3].bias.at(1), 3.0);
+  EXPECT_EQ(c[6].bias.size(), 3u);  // 3 m on every anchor
+  EXPECT_DOUBLE_EQ(c[10].sigma, 1.0);
+  EXPECT_DOUBLE_EQ(c[13].nlos_span, 60.0);
+}
+
+TEST(Sensitivity, GraphDefaultsMatchTheTrueModel) {
+  eval::SensitivityOptions o;
+  o.scenario = std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/pfibas_room.ini";
+  o.work_dir = (test::scratchDir() / "sensitivity").string();
+  o.duration = 120.0;
+  o.seeds = 1;
+  o.methods = {"graph-uwb-odom"};
+  const auto cells = eval::runSensitivity(o, nullptr);
+  ASSERT_EQ(cells.size(), 14u);
+  for (const auto& c : cells) {
+    std::printf("[ SENSITIV ] %-28s defaults %.3f m, true model %.3f m (%.2f)\n",
+                c.condition.c_str(), c.rmse_defaults, c.rmse_true, c.ratio());
+    ASSERT_TRUE(std::isfinite(c.rmse_defaults)) << c.condition;
+    if (c.condition.rfind("sigma", 0) == 0 || c.condition.find("every anchor") != std::string::npos ||
+        c.condition.rfind("clean", 0) == 0)
+      EXPECT_LE(c.rmse_defaults, 1.25 * c.rmse_true) << c.condition;
+  }
+  const auto json = nlohmann::json::parse(eval::formatSensitivityJson(cells));
+  EXPECT_EQ(json.size(), 14u);
+  EXPECT_NE(eval::formatSensitivityMarkdown(cells).find("| sigma 1.00 m |"), std::string::npos);
+}
