@@ -1,6 +1,7 @@
 // Dataset layer: manifests, anchors, ground-truth readers, rawlog reading and writing, and the
 // errors each bad input gets.
 #include <gtest/gtest.h>
+#include <mrpt/io/CFileGZInputStream.h>
 
 #include <cmath>
 #include <fstream>
@@ -210,6 +211,29 @@ TEST(Rawlog, MissingTruncatedAndCorruptFilesNameTheFile) {
 
   const auto text = writeText(dir / "text.rawlog", "this is not a rawlog\n");
   expectErrorMentions<InputError>([&] { data::readRawlog(text); }, {text, "rawlog"});
+
+  // An uncompressed copy with one object's class name spoilt: one line naming the object and
+  // the byte where it starts, and nothing of MRPT's nested exception text.
+  const auto plain = data::readRawlog(test::kDemoRawlog);  // (the demo reads cleanly)
+  mrpt::io::CFileGZInputStream gz(test::kDemoRawlog);
+  std::string raw;
+  char buf[65536];
+  for (size_t n; (n = gz.Read(buf, sizeof buf)) > 0;) raw.append(buf, n);
+  const auto at = raw.find("CActionCollection", raw.size() / 2);
+  ASSERT_NE(at, std::string::npos);
+  raw[at] = 'X';
+  const auto spoilt = (dir / "spoilt.rawlog").string();
+  std::ofstream(spoilt, std::ios::binary) << raw;
+  try {
+    data::readRawlog(spoilt);
+    FAIL() << "a spoilt class name was read";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("object "), std::string::npos) << what;
+    EXPECT_NE(what.find("at byte "), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_EQ(what.find("===="), std::string::npos) << what;
+  }
   const auto empty = writeText(dir / "empty.rawlog", "");
   expectErrorMentions<InputError>([&] { data::readRawlog(empty); }, {empty, "rawlog"});
 }

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <sstream>
 
 #include "mrpt_scan.hpp"
 #include "odometry_poses.hpp"
@@ -144,6 +145,23 @@ class Converter {
   OdometryFromPoses odometry_;
 };
 
+/// The one-line cause inside an MRPT exception's text (its first "Message:" line, without the
+/// nested traces and backtraces), at most 160 characters.
+std::string mrptCause(const std::string& what) {
+  std::istringstream in(what);
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto at = line.find("Message:");
+    if (at == std::string::npos) continue;
+    line = line.substr(at + 8);
+    const auto first = line.find_first_not_of(' ');
+    line = first == std::string::npos ? "" : line.substr(first);
+    if (!line.empty()) return line.substr(0, 160);
+  }
+  const auto end = what.find('\n');
+  return what.substr(0, std::min<size_t>(end == std::string::npos ? what.size() : end, 160));
+}
+
 }  // namespace
 
 Recording readRawlog(const std::string& path) {
@@ -165,8 +183,9 @@ Recording readRawlog(const std::string& path) {
       throwInputError(path, 0, "truncated rawlog after " + std::to_string(objects) + " objects");
     } catch (const std::exception& e) {
       throwInputError(path, 0,
-                      "corrupt or truncated rawlog after " + std::to_string(objects) +
-                          " objects: " + std::string(e.what()).substr(0, 200));
+                      "corrupt or truncated rawlog: object " + std::to_string(objects + 1) +
+                          " (at byte " + std::to_string(in.getPosition()) +
+                          " of the uncompressed stream) cannot be read: " + mrptCause(e.what()));
     }
     ++objects;
     if (!obj) continue;
