@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "kidnap.hpp"
 #include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/dataset.hpp"
@@ -246,4 +247,22 @@ TEST(MrptDemo, NlosTestStepsAsideWhenThePoseIsWrong) {
   EXPECT_LT(with.metrics.rmse_2d, 0.5 * without.metrics.rmse_2d);
   EXPECT_GT(with.events.at("nlos_test_suspended"), 0);
   EXPECT_EQ(tracking.events.count("nlos_test_suspended"), 0u);
+}
+
+// The kidnapped robot on the MRPT demo: at 150 s the robot is carried to where it was 30 s
+// later (no odometry of the move). With relocalisation on (lost_scans=3), the fused filters
+// relocalise and recover.
+TEST(KidnappedRobot, FusedFiltersRelocaliseOnTheDemo) {
+  const double t_kidnap = demo().start_time + 150.0;
+  const data::Dataset ds = test::kidnap(demo(), t_kidnap, 30.0);
+  for (const std::string m : {"fused-pf", "pf-ibas"}) {
+    const auto run = eval::runMethod(ds, m + ":lost_scans=3", 1);
+    const auto recovery = test::recoveryTime(ds, run.trajectory, t_kidnap, 0.4, 10.0);
+    const auto& events = run.statistics.events;
+    std::printf("[ KIDNAP   ] demo %-10s relocalised %ld time, recovered after %.1f s\n",
+                m.c_str(), events.count("relocalised") ? events.at("relocalised") : 0L,
+                recovery.value_or(-1.0));
+    ASSERT_TRUE(recovery.has_value()) << m << " never recovered";
+    EXPECT_LT(*recovery, 60.0) << m;
+  }
 }

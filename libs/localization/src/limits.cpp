@@ -12,6 +12,12 @@ const std::vector<ParamLimit>& paramLimits() {
   static const std::vector<ParamLimit> limits = {
       {"n", 1, 1e6, false, "particles: memory and time grow with them"},
       {"init_n", 0, 1e6, false, "particles at the start"},
+      {"relocalise_n", 0, 1e6, false, "particles when relocalising"},
+      {"lost_fit", 0, 1, false, "a fraction of the usual scan fit"},
+      {"lost_scans", 0, 1e6, false, "scans in a row"},
+      {"calib", 0, 1e6, false, "[s] of recording learnt from"},
+      {"start_sigma", 0, 1e3, true, "[m]"},
+      {"noise_rounds", 0, 100, false, "variance re-estimates (each a re-solve)"},
       {"a1", 0, 10, false, "odometry noise"},
       {"a2", 0, 10, false, "odometry noise"},
       {"a3", 0, 10, false, "odometry noise"},

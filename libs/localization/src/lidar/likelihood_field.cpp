@@ -86,4 +86,13 @@ double LikelihoodField::logLikelihood(double x, double y, double theta) const {
   return sum;
 }
 
+double LikelihoodField::fitFraction(double x, double y, double theta, double tolerance) const {
+  if (ex_.empty()) return 0.0;
+  const double c = std::cos(theta), s = std::sin(theta);
+  size_t near = 0;
+  for (size_t i = 0; i < ex_.size(); ++i)
+    near += distance(x + c * ex_[i] - s * ey_[i], y + s * ex_[i] + c * ey_[i]) <= tolerance;
+  return static_cast<double>(near) / static_cast<double>(ex_.size());
+}
+
 }  // namespace uwbloc::loc

@@ -38,8 +38,10 @@ std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core
     posterior = std::make_unique<SwarmStep>(*swarm);
   else
     posterior = std::make_unique<ResamplingStep>();
-  return std::make_unique<ParticleLocalizer>(core, context, std::move(measurements),
-                                             std::move(posterior));
+  auto pf = std::make_unique<ParticleLocalizer>(core, context, std::move(measurements),
+                                                std::move(posterior));
+  if (lidar) pf->setRelocaliseParticles(lidar->relocalise_n);
+  return pf;
 }
 }  // namespace detail
 
@@ -76,6 +78,7 @@ std::vector<std::pair<std::string, std::string>> ParticleLocalizer::artifacts() 
 
 void ParticleLocalizer::initialise() {
   for (auto& m : measurements_) m->reset();
+  pf_.setStartParticles(core_.init_n);
   if (core_.init == InitMode::kTracking) {
     pf_.initUniformBox(*context_.initial_pose,
                        {core_.init_xy, core_.init_xy, core_.init_theta_deg * M_PI / 180.0});
@@ -101,7 +104,23 @@ std::optional<PoseEstimate> ParticleLocalizer::finishEpoch() {
   est.pose = e.mean;
   est.covariance = e.covariance;
   for (auto& m : measurements_) m->endEpoch(est);
+  for (const auto& m : measurements_)
+    if (m->lost()) {
+      relocalise();
+      break;
+    }
   return est;
+}
+
+// Lost (a measurement model says so, e.g. the scans no longer fit the map at the estimate):
+// particles over the whole map's free space, many of them, down to n once they converge.
+void ParticleLocalizer::relocalise() {
+  ++stats_.events["relocalised"];
+  ++stats_.resets;
+  for (auto& m : measurements_) m->reset();
+  if (!context_.map) return;
+  pf_.setStartParticles(std::max(relocalise_n_, core_.particles));
+  pf_.initUniform(context_.map->freeCells(), context_.map->resolution());
 }
 
 void ParticleLocalizer::endCalibration() {

@@ -4,7 +4,9 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <limits>
 #include <cstdio>
+#include <cstdlib>
 
 #include "uwbloc/uwb/range_model.hpp"
 
@@ -31,7 +33,15 @@ void LidarFieldMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stat
     return;
   }
   const LikelihoodField& f = field_;
-  pf.weight([&f](double x, double y, double th) { return f.logLikelihood(x, y, th); });
+  double best = -std::numeric_limits<double>::infinity();
+  pf.weight([&](double x, double y, double th) {
+    const double l = f.logLikelihood(x, y, th);
+    if (l > best) {
+      best = l;
+      best_pose_ = {x, y, th};
+    }
+    return l;
+  });
 }
 
 double LidarFieldMeasurement::addLogLikelihood(double l, double x, double y, double th) const {
@@ -39,6 +49,24 @@ double LidarFieldMeasurement::addLogLikelihood(double l, double x, double y, dou
 }
 
 void LidarFieldMeasurement::endEpoch(const PoseEstimate& est) {
+  if (has_scan_ && hold_off_ > 0) {
+    --hold_off_;
+  } else if (has_scan_ && field_.rays() > 0 && params_.lost_scans > 0) {
+    // The scan's fit at the estimate, against its usual level (a running mean over the scans
+    // judged not lost; the first 10 only build it).
+    // At the particle the scan fits best: in clutter the mean may fit poorly while some
+    // particle still fits; after a kidnapping none does.
+    const double fit = field_.fitFraction(best_pose_.x(), best_pose_.y(), best_pose_.z(),
+                                          0.5 * params_.field.max_dist);
+    constexpr long kWarmUp = 10;
+    if (fits_ >= kWarmUp && fit < params_.lost_fit * usual_fit_) {
+      ++low_fit_streak_;
+    } else {
+      low_fit_streak_ = 0;
+      ++fits_;
+      usual_fit_ += (fit - usual_fit_) / static_cast<double>(std::min(fits_, 100L));
+    }
+  }
   if (params_.landmarks && has_scan_) {
     // Corners seen from the current estimate grow the landmark map.
     const Eigen::Matrix2d r =

@@ -34,6 +34,9 @@ class LikelihoodField {
   size_t rays() const { return ex_.size(); }
   /// Log-likelihood of the stored scan from robot pose (x, y, theta).
   double logLikelihood(double x, double y, double theta) const;
+  /// Fraction of the stored scan's endpoints within `tolerance` of an obstacle, seen from
+  /// (x, y, theta): how well the scan fits the map there (0 without endpoints).
+  double fitFraction(double x, double y, double theta, double tolerance) const;
 
  private:
   LikelihoodFieldParams params_;

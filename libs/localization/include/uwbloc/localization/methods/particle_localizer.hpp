@@ -35,6 +35,8 @@ class ParticleLocalizer : public Estimator {
 
   std::vector<std::pair<std::string, std::string>> artifacts() const override;
   const ParticleFilter& filter() const { return pf_; }
+  /// Particles spread over the map when a measurement model judges the filter lost.
+  void setRelocaliseParticles(int n) { relocalise_n_ = n; }
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
@@ -50,6 +52,8 @@ class ParticleLocalizer : public Estimator {
   std::optional<PoseEstimate> step(const Event& event);
   /// Ends the calibration: the learnt model to the parts, then the kept events filtered.
   void endCalibration();
+  /// A measurement model judged the filter lost: spread particles over the map again.
+  void relocalise();
   std::optional<PoseEstimate> finishEpoch();
   /// The epoch's log-likelihood at one pose, summed over the measurement models.
   double epochLogLikelihood(double x, double y, double theta) const;
@@ -62,6 +66,7 @@ class ParticleLocalizer : public Estimator {
   EpochFitness fitness_;  ///< epochLogLikelihood, bound once
   double epoch_t_ = 0.0;
   bool epoch_open_ = false;
+  int relocalise_n_ = 0;  ///< particles for relocalising (the LiDAR part's relocalise_n)
   // Calibration (see above).
   std::unique_ptr<Estimator> calibrator_;
   double calib_span_ = 0.0;

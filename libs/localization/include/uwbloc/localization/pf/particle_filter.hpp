@@ -100,6 +100,8 @@ class ParticleFilter {
   void initUniformBox(const Eigen::Vector3d& pose, const Eigen::Vector3d& half_width);
   /// Global: uniform over the given free cells (x, y), heading uniform.
   void initUniform(const std::vector<Eigen::Vector2d>& free_cells, double cell_size);
+  /// How many particles the next init starts with (down to `particles` once converged).
+  void setStartParticles(int n) { params_.initial_particles = n; }
 
   /// Moves every particle by the odometry increment with sampled noise.
   void predict(const Eigen::Vector3d& delta);
