@@ -229,8 +229,8 @@ TEST(SyntheticLoop, ParticleFilterLearnsTheRangeModel) {
 // telling the room's symmetric twins apart. LiDAR alone (lidar-mcl) relocalises too, but may
 // settle in a twin: printed, not asserted.
 TEST(KidnappedRobot, LidarFiltersRelocaliseInTheRoom) {
-  auto s = data::loadScenario(std::string(UWBLOC_SOURCE_DIR) +
-                              "/datasets/scenarios/pfibas_room.ini");
+  auto s =
+      data::loadScenario(std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/pfibas_room.ini");
   s.duration = 240.0;
   const auto full = data::loadDataset(
       data::writeSimulation(s, 1, (test::scratchDir() / "kidnap_room").string()), "");

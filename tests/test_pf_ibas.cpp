@@ -259,8 +259,8 @@ TEST(KidnappedRobot, FusedFiltersRelocaliseOnTheDemo) {
     const auto run = eval::runMethod(ds, m + ":lost_scans=3", 1);
     const auto recovery = test::recoveryTime(ds, run.trajectory, t_kidnap, 0.4, 10.0);
     const auto& events = run.statistics.events;
-    std::printf("[ KIDNAP   ] demo %-10s relocalised %ld time, recovered after %.1f s\n",
-                m.c_str(), events.count("relocalised") ? events.at("relocalised") : 0L,
+    std::printf("[ KIDNAP   ] demo %-10s relocalised %ld time, recovered after %.1f s\n", m.c_str(),
+                events.count("relocalised") ? events.at("relocalised") : 0L,
                 recovery.value_or(-1.0));
     ASSERT_TRUE(recovery.has_value()) << m << " never recovered";
     EXPECT_LT(*recovery, 60.0) << m;

@@ -117,8 +117,8 @@ TEST(Plaza, GraphDefaultsEstimateNoiseAndBias) {
       if (const auto p = eval::interpolateGroundTruth(ds.ground_truth, r->t, 1.0))
         for (const auto& a : ds.anchors)
           if (a.id == r->anchor_id)
-            offsets[a.id].push_back(r->range - (Eigen::Vector3d(p->x(), p->y(), 0.0) -
-                                                a.position).norm());
+            offsets[a.id].push_back(r->range -
+                                    (Eigen::Vector3d(p->x(), p->y(), 0.0) - a.position).norm());
   ASSERT_EQ(run.statistics.estimated_noise.size(), offsets.size());
   for (const auto& [id, v] : offsets) {
     const double median = eval::quantile(v, 0.5);

@@ -176,6 +176,14 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
   return cells;
 }
 
+std::string markdownTableHeader(const std::string& first, const std::vector<std::string>& columns) {
+  std::string out = "| " + first + " |";
+  for (const auto& c : columns) out += " " + c + " |";
+  out += "\n|---|";
+  for (size_t i = 0; i < columns.size(); ++i) out += "---|";
+  return out + "\n";
+}
+
 std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int seeds) {
   std::vector<std::string> columns, rows;
   std::map<std::pair<std::string, std::string>, const BenchmarkCell*> at;
@@ -189,11 +197,8 @@ std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int
   md << "2D RMSE [m], mean / worst over seeds 1-" << seeds
      << ", defaults only (a column marked \"manifest facts\" also uses the range noise the "
         "manifest states); cov = coverage when under 0.9; blank: the dataset lacks the "
-        "method's sensors.\n\n| method |";
-  for (const auto& c : columns) md << " " << c << " |";
-  md << "\n|---|";
-  for (size_t i = 0; i < columns.size(); ++i) md << "---|";
-  md << "\n";
+        "method's sensors.\n\n"
+     << markdownTableHeader("method", columns);
   for (const auto& r : rows) {
     md << "| " << r << " |";
     for (const auto& c : columns) {

@@ -1,5 +1,7 @@
 #include "uwbloc/evaluation/sensitivity.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -10,6 +12,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/scenario.hpp"
 #include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/evaluation/benchmark.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/registry.hpp"
 
@@ -92,7 +95,8 @@ std::vector<SensitivityCell> runSensitivity(const SensitivityOptions& options,
   std::vector<SensitivityCell> out;
   int k = 0;
   for (const auto& c : defaultConditions(ids)) {
-    const std::string dir = (fs::path(options.work_dir) / ("condition_" + std::to_string(k++))).string();
+    const std::string dir =
+        (fs::path(options.work_dir) / ("condition_" + std::to_string(k++))).string();
     const data::Dataset injected = simulateCondition(base, c, true, dir + "/injected");
     const data::Dataset truth = simulateCondition(base, c, false, dir + "/true_model");
     for (const auto& m : options.methods) {
@@ -104,7 +108,8 @@ std::vector<SensitivityCell> runSensitivity(const SensitivityOptions& options,
       cell.worst_defaults = d.worstRmse();
       // The true model: the ranges without the injected bias, the std given. The NLOS span has
       // no parameter to give: its reference is the run without it.
-      cell.rmse_true = evaluateMethod(truth, trueModelSpec(m, c.sigma), options.seeds, 1).metrics.rmse_2d;
+      cell.rmse_true =
+          evaluateMethod(truth, trueModelSpec(m, c.sigma), options.seeds, 1).metrics.rmse_2d;
       char line[200];
       std::snprintf(line, sizeof line, "%-28s %-16s defaults %.3f (worst %.3f), true model %.3f",
                     c.name.c_str(), m.c_str(), cell.rmse_defaults, cell.worst_defaults,
@@ -125,11 +130,8 @@ std::string formatSensitivityMarkdown(const std::vector<SensitivityCell>& cells)
       conditions.push_back(c.condition);
   }
   std::ostringstream out;
-  out << "2D RMSE [m] with defaults / with the true model given (ratio)\n\n| condition |";
-  for (const auto& m : methods) out << " " << m << " |";
-  out << "\n|---|";
-  for (size_t i = 0; i < methods.size(); ++i) out << "---|";
-  out << "\n";
+  out << "2D RMSE [m] with defaults / with the true model given (ratio)\n\n"
+      << markdownTableHeader("condition", methods);
   for (const auto& cond : conditions) {
     out << "| " << cond << " |";
     for (const auto& m : methods)

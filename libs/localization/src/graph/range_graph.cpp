@@ -194,8 +194,8 @@ double RangeGraph::rangeResidual(const Range& r, Eigen::Vector3d* gradient) cons
   const double dist = std::max(d.norm(), 1e-9);
   if (gradient) {
     // d(dist)/d(x, y, theta); the residual's gradient is its negative.
-    const double dtheta = d.x() * (-s * r.tag.x() - c * r.tag.y()) +
-                          d.y() * (c * r.tag.x() - s * r.tag.y());
+    const double dtheta =
+        d.x() * (-s * r.tag.x() - c * r.tag.y()) + d.y() * (c * r.tag.x() - s * r.tag.y());
     *gradient = -Eigen::Vector3d(d.x(), d.y(), dtheta) / dist;
   }
   return r.range - dist - biases_[static_cast<size_t>(r.anchor)];

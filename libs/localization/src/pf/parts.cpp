@@ -1,12 +1,11 @@
 #include "uwbloc/localization/pf/parts.hpp"
 
-#include <sstream>
-
 #include <Eigen/Dense>
 #include <cmath>
-#include <limits>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
+#include <sstream>
 
 #include "uwbloc/uwb/range_model.hpp"
 

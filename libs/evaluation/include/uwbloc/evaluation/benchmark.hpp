@@ -45,6 +45,9 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
                                         const BenchmarkOptions& options,
                                         const std::function<void(const std::string&)>& log);
 
+/// A Markdown table's header: "| first | c1 | c2 |" and its separator row, each with its newline.
+std::string markdownTableHeader(const std::string& first, const std::vector<std::string>& columns);
+
 /// Methods as rows, datasets (and variants) as columns: "mean / worst" per cell.
 std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int seeds);
 std::string formatBenchmarkJson(const std::vector<BenchmarkCell>& cells, int seeds);

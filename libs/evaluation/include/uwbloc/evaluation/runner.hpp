@@ -61,7 +61,7 @@ struct MethodSummary {
   std::map<int, std::map<std::string, long>> rejected_by_anchor;
   long accepted_ranges = 0;
   long resets = 0;
-  std::map<std::string, long> events;  ///< non-rejection events by name (first run)
+  std::map<std::string, long> events;                 ///< non-rejection events by name (first run)
   std::map<int, loc::NoiseEstimate> estimated_noise;  ///< per anchor id (first run)
   std::optional<double> estimated_range_sigma;        ///< the model's range std (first run)
   std::vector<loc::ParamInfo> parameters;

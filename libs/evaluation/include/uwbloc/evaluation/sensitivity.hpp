@@ -18,15 +18,14 @@ struct SensitivityOptions {
   std::string work_dir = "runs/sensitivity";
   double duration = 240.0;  ///< simulated span [s] (laps of the scenario's path)
   int seeds = 3;            ///< filter seeds 1..seeds per run (the data uses seed 1)
-  std::vector<std::string> methods = {"graph-uwb-odom", "uwb-ekf", "uwb-pf", "fused-pf",
-                                      "pf-ibas"};
+  std::vector<std::string> methods = {"graph-uwb-odom", "uwb-ekf", "uwb-pf", "fused-pf", "pf-ibas"};
 };
 
 struct SensitivityCondition {
-  std::string name;             ///< e.g. "bias 1 m on anchor 1"
-  double sigma = 0.1;           ///< LOS range noise std [m]
-  std::map<int, double> bias;   ///< injected bias per anchor id [m]
-  double nlos_span = 0.0;       ///< length of the all-NLOS span, from 1/3 of the run [s]
+  std::string name;            ///< e.g. "bias 1 m on anchor 1"
+  double sigma = 0.1;          ///< LOS range noise std [m]
+  std::map<int, double> bias;  ///< injected bias per anchor id [m]
+  double nlos_span = 0.0;      ///< length of the all-NLOS span, from 1/3 of the run [s]
 };
 
 /// The conditions the issue asks for: biases 0.5, 1, 3 m on one anchor, then on all; sigma
@@ -36,7 +35,7 @@ std::vector<SensitivityCondition> defaultConditions(const std::vector<int>& anch
 struct SensitivityCell {
   std::string condition, method;
   double rmse_defaults = 0.0, worst_defaults = 0.0;  ///< mean and worst over seeds [m]
-  double rmse_true = 0.0;                           ///< with the true model given [m]
+  double rmse_true = 0.0;                            ///< with the true model given [m]
   double ratio() const { return rmse_true > 0.0 ? rmse_defaults / rmse_true : 0.0; }
 };
 

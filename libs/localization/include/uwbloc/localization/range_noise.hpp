@@ -40,8 +40,7 @@ class RangeNoiseModel {
   explicit RangeNoiseModel(double sigma) : sigma_(sigma) {}
   /// Takes a learnt model: `noise` per anchor (bias, applied only when `use_bias`) and the
   /// std (none: keep the method's own).
-  void learn(const std::map<int, NoiseEstimate>& noise, bool use_bias,
-             std::optional<double> sigma);
+  void learn(const std::map<int, NoiseEstimate>& noise, bool use_bias, std::optional<double> sigma);
   double bias(int anchor) const {
     const auto it = bias_.find(anchor);
     return it == bias_.end() ? 0.0 : it->second;

@@ -55,10 +55,10 @@ struct VarianceComponents {
 struct AnchorResiduals {
   int anchor_id = 0;
   long ranges = 0;
-  double bias = 0.0;           ///< the solved bias (0 when not estimated) [m]
-  double median = 0.0;         ///< median of z - predicted distance (bias not subtracted) [m]
+  double bias = 0.0;    ///< the solved bias (0 when not estimated) [m]
+  double median = 0.0;  ///< median of z - predicted distance (bias not subtracted) [m]
   double median_first_half = 0.0, median_second_half = 0.0;  ///< the same per half, in time [m]
-  double robust_sigma = 0.0;   ///< 1.4826 MAD of z - predicted - bias [m]
+  double robust_sigma = 0.0;  ///< 1.4826 MAD of z - predicted - bias [m]
 };
 
 struct GraphSolution {

@@ -30,8 +30,8 @@ struct GraphSmootherParams {
   double odom_sigma_theta_per_rad = 0.05;               ///< ... plus this per radian turned
   BiasMode bias = BiasMode::kAuto;                      ///< a range bias per anchor
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
-  bool estimate_anchors = false;                        ///< anchors' x, y with a prior
-  double anchor_prior = 0.5;                            ///< [m]
+  bool estimate_anchors = false;  ///< anchors' x, y with a prior
+  double anchor_prior = 0.5;      ///< [m]
   int iterations = 100;
   std::string front_end;          ///< "" or a method spec whose estimates become vertices
   bool landmarks = true;          ///< front-end mode: LiDAR corner landmarks as vertices
@@ -122,7 +122,7 @@ class GraphSmoother : public UwbEstimator {
   std::vector<WindowVertex> window_;
   double last_output_t_ = -1e300;
   std::deque<OdometryIncrement> odometry_pending_;  ///< not yet before a window vertex
-  std::deque<AcceptedRange> ranges_pending_;         ///< not yet on a window vertex
+  std::deque<AcceptedRange> ranges_pending_;        ///< not yet on a window vertex
   std::optional<PoseEstimate> addWindowVertex(const PoseEstimate& e);
   std::optional<PoseEstimate> solveWindow();
   /// Sliding-window mode (needs a front end); otherwise everything is kept for one batch solve.

@@ -30,7 +30,7 @@ constexpr std::array<EnumName<EkfStart>, 2> enumNames(EkfStart) {
 struct UwbEkfParams {
   RangeFrontEndParams front;
   EkfStart start = EkfStart::kStartPose;
-  double start_sigma = 0.5;         ///< std of the start pose's position [m]
+  double start_sigma = 0.5;    ///< std of the start pose's position [m]
   AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
   double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity

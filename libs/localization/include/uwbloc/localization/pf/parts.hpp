@@ -221,7 +221,9 @@ class LidarFieldMeasurement final : public EpochMeasurement {
   void endEpoch(const PoseEstimate& estimate) override;
   void addArtifacts(std::vector<std::pair<std::string, std::string>>& out) const override;
   const LandmarkMap& landmarkMap() const { return landmark_map_; }
-  bool lost() const override { return params_.lost_scans > 0 && low_fit_streak_ >= params_.lost_scans; }
+  bool lost() const override {
+    return params_.lost_scans > 0 && low_fit_streak_ >= params_.lost_scans;
+  }
   /// After a (re)start the cloud needs scans to converge: the test waits 10 x lost_scans.
   void reset() override {
     low_fit_streak_ = 0;
@@ -266,13 +268,13 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   UwbPartParams params_;
   RangeFrontEnd front_;
   std::shared_ptr<const OccupancyMap> map_;
-  std::string nlos_reason_;                  ///< "nlos_<test>", built once
-  uwb::ChiSquareGate pose_gate_;             ///< the pose test at k sigma (threshold k^2)
+  std::string nlos_reason_;       ///< "nlos_<test>", built once
+  uwb::ChiSquareGate pose_gate_;  ///< the pose test at k sigma (threshold k^2)
   std::vector<AcceptedRange> epoch_;
   std::vector<AcceptedRange> used_;  ///< the clean ones (bias removed), for the swarm's fitness
   RangeNoiseModel noise_;
-  int epoch_flagged_ = 0;                    ///< ranges of the open epoch that failed the NLOS test
-  int nlos_streak_ = 0;                      ///< epochs in a row in which most ranges failed it
+  int epoch_flagged_ = 0;  ///< ranges of the open epoch that failed the NLOS test
+  int nlos_streak_ = 0;    ///< epochs in a row in which most ranges failed it
 };
 
 /// Bayes weights, then resampling by the filter's strategy when ESS / N falls below its
