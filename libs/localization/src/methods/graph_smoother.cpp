@@ -14,6 +14,10 @@ constexpr long kMinRangesForBias = 20;
 /// sigma=auto stops re-estimating once the std moves by less than this fraction: each round
 /// costs a marginal-covariance computation, and the last percents change no pose noticeably.
 constexpr double kSettled = 0.05;
+/// Each variance re-estimate needs the marginal covariances of every pose, which grows about
+/// with the square of their number (CARMEN intel with simulated UWB, 9 721 poses: about 2 min);
+/// larger graphs keep the starting std and say so (event noise_estimate_skipped_large_graph).
+constexpr size_t kMaxPosesForNoiseEstimate = 20000;
 
 }  // namespace
 
@@ -305,7 +309,17 @@ bool GraphSmoother::solveOnce(graph::RangeGraph& g, const graph::RangeGraphParam
 // shows as +0.16 m): such a bias can go unseen (`uwbloc sensitivity`).
 void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   graph::RangeGraphParams p = graphParams();
-  const bool auto_sigma = params_.front.sigma.isAuto();
+  bool auto_sigma = params_.front.sigma.isAuto();
+  if (auto_sigma && front_ && front_->statistics().estimated_range_sigma) {
+    // The front end learnt the std already (a particle filter's batch start): no covariances
+    // over its many vertices.
+    p.range_sigma = *front_->statistics().estimated_range_sigma;
+    stats_.estimated_range_sigma = p.range_sigma;
+    auto_sigma = false;
+  } else if (auto_sigma && g.poses() > kMaxPosesForNoiseEstimate) {
+    ++stats_.events["noise_estimate_skipped_large_graph"];
+    auto_sigma = false;
+  }
   if (auto_sigma || params_.bias == BiasMode::kAuto) p.estimate_bias = false;
   if (!solveOnce(g, p)) return;
   if (auto_sigma) {
