@@ -221,7 +221,7 @@ double RangeGraph::lossConsistency() const {
   return num / den;
 }
 
-std::optional<VarianceComponents> RangeGraph::estimateVarianceComponents() {
+std::optional<double> RangeGraph::estimateRangeSigma() {
   if (!problem_ || ranges_.empty()) return std::nullopt;
   ceres::Problem& p = *problem_;
   std::vector<std::pair<const double*, const double*>> blocks;
@@ -266,11 +266,9 @@ std::optional<VarianceComponents> RangeGraph::estimateVarianceComponents() {
   }
   redundancy -= free_bias - bias_prior_leverage;
   if (redundancy <= 1.0) return std::nullopt;
-  VarianceComponents out;
-  out.range_sigma = std::sqrt(weighted_sq / (redundancy * lossConsistency()));
-  out.range_redundancy = redundancy;
-  if (!std::isfinite(out.range_sigma)) return std::nullopt;
-  return out;
+  const double sigma_new = std::sqrt(weighted_sq / (redundancy * lossConsistency()));
+  if (!std::isfinite(sigma_new)) return std::nullopt;
+  return sigma_new;
 }
 
 std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {

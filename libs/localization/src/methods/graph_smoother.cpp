@@ -324,13 +324,13 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   if (!solveOnce(g, p)) return;
   if (auto_sigma) {
     for (int round = 0; round < params_.noise_rounds; ++round) {
-      const auto vc = g.estimateVarianceComponents();
+      const auto estimate = g.estimateRangeSigma();
       ++stats_.events["noise_rounds"];
-      if (!vc) {
+      if (!estimate) {
         ++stats_.events["noise_estimate_failed"];
         break;
       }
-      const double sigma = std::clamp(vc->range_sigma, 1e-3, 1e3);
+      const double sigma = std::clamp(*estimate, 1e-3, 1e3);
       const bool settled = std::abs(sigma / p.range_sigma - 1.0) < kSettled;
       p.range_sigma = sigma;
       if (settled) break;

@@ -42,20 +42,17 @@ class RangeNoiseModel {
   /// std (none: keep the method's own).
   void learn(const std::map<int, NoiseEstimate>& noise, bool use_bias, std::optional<double> sigma);
   double bias(int anchor) const {
-    const auto it = bias_.find(anchor);
-    return it == bias_.end() ? 0.0 : it->second;
+    const auto it = learnt_noise_.find(anchor);
+    return it == learnt_noise_.end() ? 0.0 : it->second.bias;
   }
-  double sigma() const { return sigma_; }
+  double sigma() const { return learnt_sigma_.value_or(sigma_); }
   /// The learnt model into the run's statistics (estimated_noise, estimated_range_sigma).
   void report(EstimatorStatistics& stats) const;
-  bool learnt() const { return learnt_; }
 
  private:
-  double sigma_;
-  std::map<int, double> bias_;
-  std::map<int, NoiseEstimate> learnt_noise_;
-  bool learnt_ = false;
-  bool sigma_learnt_ = false;
+  double sigma_;                               ///< the method's own std
+  std::optional<double> learnt_sigma_;         ///< the learnt std, when one was learnt
+  std::map<int, NoiseEstimate> learnt_noise_;  ///< per anchor; biases zeroed when not used
 };
 
 }  // namespace uwbloc::loc

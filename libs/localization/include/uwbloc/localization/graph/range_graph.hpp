@@ -41,16 +41,6 @@ struct RangeGraphParams {
   int threads = 0;  ///< Ceres threads; 0: every core of the machine
 };
 
-/// The range edges' variance component from a solved graph (Helmert's estimator with the robust
-/// loss's weights): their weighted squared residuals over their redundancy, the part of them
-/// the solution did not absorb (sum of w - leverage, the leverage from the poses' marginal
-/// covariances), divided by the loss's consistency factor E[w z^2] / E[w] for Gaussian z
-/// (0.746 for the Cauchy loss at 2 std) so that Gaussian noise gives its own std.
-struct VarianceComponents {
-  double range_sigma = 0.0;       ///< re-estimated range std [m]
-  double range_redundancy = 0.0;  ///< sum over the range edges of (w - leverage)
-};
-
 /// Residual statistics of one anchor's range edges after a solve.
 struct AnchorResiduals {
   int anchor_id = 0;
@@ -101,10 +91,14 @@ class RangeGraph {
   /// anchors are estimated, the first anchor and the first pose are held constant (see build()).
   void build(const RangeGraphParams& params);
   GraphSolution solve();
-  /// After solve(): the range edges' variance component. Needs the marginal covariances of the
-  /// free pose and bias blocks; nothing when they cannot be computed or when the ranges have no
+  /// After solve(): the range std re-estimated from the range edges' variance component
+  /// (Helmert's estimator with the robust loss's weights): their weighted squared residuals over
+  /// their redundancy, the part of them the solution did not absorb (sum of w - leverage, the
+  /// leverage from the poses' marginal covariances), divided by the loss's consistency factor
+  /// E[w z^2] / E[w] for Gaussian z (0.746 for the Cauchy loss at 2 std) so that Gaussian noise
+  /// gives its own std. Nothing when the covariances cannot be computed or the ranges have no
   /// redundancy.
-  std::optional<VarianceComponents> estimateVarianceComponents();
+  std::optional<double> estimateRangeSigma();
   /// After solve(): each anchor's range residual statistics (ranges in the order added).
   std::vector<AnchorResiduals> anchorResiduals() const;
   /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
