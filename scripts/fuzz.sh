@@ -12,12 +12,12 @@ if [ ! -f build-fuzz/CMakeCache.txt ]; then
     -DUWBLOC_FUZZ=ON -DBUILD_TESTS=OFF -DBUILD_APPS=OFF > build-fuzz.log 2>&1 \
     || { cat build-fuzz.log; exit 1; }
 fi
-cmake --build build-fuzz --target fuzz_ini fuzz_params fuzz_text_readers > build-fuzz.log 2>&1 \
+cmake --build build-fuzz --target fuzz_ini fuzz_params fuzz_text_readers fuzz_rawlog fuzz_importers > build-fuzz.log 2>&1 \
   || { cat build-fuzz.log; exit 1; }
-for target in fuzz_ini fuzz_params fuzz_text_readers; do
+for target in fuzz_ini fuzz_params fuzz_text_readers fuzz_rawlog fuzz_importers; do
   mkdir -p "build-fuzz/corpus/$target"
   echo "fuzzing $target for ${seconds} s"
-  ASAN_OPTIONS=detect_leaks=0 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+  ASAN_OPTIONS=detect_leaks=0:quarantine_size_mb=32 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
     "build-fuzz/fuzz/$target" -max_total_time="$seconds" -max_len=4096 -timeout=10 \
     -print_final_stats=1 -artifact_prefix="build-fuzz/$target-" \
     "build-fuzz/corpus/$target" "tests/fuzz/corpus/$target" 2>&1 \

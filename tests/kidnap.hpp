@@ -49,8 +49,9 @@ inline std::optional<double> recoveryTime(const data::Dataset& ds,
       since.reset();
       continue;
     }
-    if (!since) since = p.t;
-    if (p.t - *since >= hold) return *since - t_kidnap;
+    const double first = since.value_or(p.t);
+    since = first;
+    if (p.t - first >= hold) return first - t_kidnap;
   }
   return std::nullopt;
 }

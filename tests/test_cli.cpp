@@ -222,6 +222,19 @@ TEST(Cli, UnknownMethodNamesInSetAndConfigAndAbsurdOptions) {
   EXPECT_EQ(rep.code, 2) << rep.output;
 }
 
+TEST(Cli, ARunOverTheMemoryLimitIsRefusedBeforeItStarts) {
+  const auto dir = uwbloc::test::scratchDir();
+  const auto out = (dir / "run").string();
+  // 1e6 particles are about 92 MiB: refused under a 50 MiB limit, with the parts named.
+  expectFailureMentioning(runCli("compare -m pf-sir:n=1000000 --max-memory 50M -o " + out),
+                          {"error:", "pf-sir", "particles", "--max-memory", "50 MiB"});
+  EXPECT_FALSE(std::filesystem::exists(out));
+  const auto bad = runCli("compare -m uwb-ls --max-memory lots -o " + out);
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.output.find("--max-memory"), std::string::npos) << bad.output;
+  EXPECT_EQ(runCli("compare -m uwb-ls --max-memory 2G -o " + out).code, 0);
+}
+
 TEST(Cli, AReferenceThatDoesNotOverlapTheRunIsRefused) {
   const auto dir = uwbloc::test::scratchDir();
   writeRanges(dir / "o.rawlog", 60);

@@ -2,6 +2,9 @@
 // errors each bad input gets.
 #include <gtest/gtest.h>
 #include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/obs/CObservationIMU.h>
+#include <mrpt/serialization/CArchive.h>
 
 #include <cmath>
 #include <fstream>
@@ -12,6 +15,7 @@
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
 #include "uwbloc/dataset/manifest.hpp"
+#include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 
 using namespace uwbloc;
@@ -236,6 +240,68 @@ TEST(Rawlog, MissingTruncatedAndCorruptFilesNameTheFile) {
   }
   const auto empty = writeText(dir / "empty.rawlog", "");
   expectErrorMentions<InputError>([&] { data::readRawlog(empty); }, {empty, "rawlog"});
+}
+
+TEST(Rawlog, ACorruptCountIsRefusedBeforeItIsAllocated) {
+  // The demo's uncompressed stream with the first beacon observation's measurement count set to
+  // 2^24: MRPT would resize to 16 M measurements (about 1 GB) before finding that the stream
+  // ends. The reader caps every allocation by what is left of the stream.
+  ASSERT_TRUE(data::allocationGuardActive());
+  const auto dir = test::scratchDir();
+  mrpt::io::CFileGZInputStream gz(test::kDemoRawlog);
+  std::string raw;
+  char buf[65536];
+  for (size_t n; (n = gz.Read(buf, sizeof buf)) > 0;) raw.append(buf, n);
+  const std::string name = "CObservationBeaconRanges";
+  const auto at = raw.find(name);
+  ASSERT_NE(at, std::string::npos);
+  // Version byte, then min, max and std (three floats), then the uint32 count.
+  const size_t count_at = at + name.size() + 1 + 12;
+  ASSERT_EQ(raw[at + name.size()], 3) << "serialisation version";
+  raw.replace(count_at, 4, std::string("\x00\x00\x00\x01", 4));
+  const auto path = (dir / "count.rawlog").string();
+  std::ofstream(path, std::ios::binary) << raw;
+  expectErrorMentions<InputError>([&] { data::readRawlog(path); },
+                                  {path, "object ", "at byte ", "claims", "corrupt count"});
+}
+
+TEST(Rawlog, AnImuReadingWithoutThePlanarFieldsIsCountedNotThrown) {
+  // MRPT's CObservationIMU::get throws for a field that is not present: a reading with the yaw
+  // rate only is rejected and counted; the reading with all three is kept.
+  const auto path = (test::scratchDir() / "imu.rawlog").string();
+  {
+    mrpt::io::CFileGZOutputStream out(path);
+    auto archive = mrpt::serialization::archiveFrom(out);
+    mrpt::obs::CObservationIMU partial;
+    partial.timestamp = mrpt::Clock::fromDouble(1.7e9);
+    partial.set(mrpt::obs::IMU_YAW_VEL, 0.1);
+    archive << partial;
+    mrpt::obs::CObservationIMU full = partial;
+    full.timestamp = mrpt::Clock::fromDouble(1.7e9 + 0.01);
+    full.set(mrpt::obs::IMU_X_ACC, 0.2);
+    full.set(mrpt::obs::IMU_Y_ACC, 0.3);
+    archive << full;
+  }
+  const auto rec = data::readRawlog(path);
+  EXPECT_EQ(rec.counts.at("rejected_imu_without_planar_fields"), 1);
+  EXPECT_EQ(rec.counts.at("imu_observations"), 1);
+}
+
+TEST(MemoryLimits, ByteSizesParseAndTheCapRefusesLargerAllocations) {
+  EXPECT_EQ(data::parseByteSize("512M"), std::size_t{512} << 20);
+  EXPECT_EQ(data::parseByteSize("4G"), std::size_t{4} << 30);
+  EXPECT_EQ(data::parseByteSize("1.5GiB"), static_cast<std::size_t>(1.5 * (1 << 30)));
+  EXPECT_EQ(data::parseByteSize("2000"), 2000u);
+  EXPECT_FALSE(data::parseByteSize("lots"));
+  EXPECT_FALSE(data::parseByteSize("-1G"));
+  EXPECT_FALSE(data::parseByteSize("3X"));
+  EXPECT_EQ(data::formatBytes(1536.0 * (1 << 20)), "1.5 GiB");
+  {
+    const data::ScopedAllocationCap cap(1 << 20);
+    EXPECT_THROW(std::vector<char>(2 << 20), data::AllocationOverCap);
+    EXPECT_NO_THROW(std::vector<char>(1 << 19));
+  }
+  EXPECT_NO_THROW(std::vector<char>(2 << 20));  // the cap ends with its scope
 }
 
 TEST(Dataset, DemoLoadsWithGroundTruthOnStepTimes) {

@@ -9,6 +9,7 @@
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
@@ -151,6 +152,21 @@ TEST_P(PlazaDirection, IsFoundFromTheData) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Both, PlazaDirection, ::testing::Values(1.0, -1.0));
+
+TEST(Plaza, AnIdOutsideTheIntegersIsAnErrorNamingTheLine) {
+  // Found by fuzzing: a beacon id of 3e20 was converted to int (undefined behaviour).
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "P_DR.txt", "1 0.1 0\n2 0.1 0\n");
+  test::writeText(dir / "P_GT.txt", "1 0 0 0\n2 0.1 0 0\n");
+  test::writeText(dir / "P_TL.txt", "1 0 0\n2 5 0\n");
+  const auto td = test::writeText(dir / "P_TD.txt", "1 0 1 3.0\n1.5 0 3e20 4.0\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importPlaza(dir.string(), (dir / "out").string()); },
+      {td + ":2", "beacon", "integer id", "3e20"});
+  test::writeText(dir / "P_TD.txt", "1 0 1 3.0\n1.5 0 2.5 4.0\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importPlaza(dir.string(), (dir / "out").string()); }, {td + ":2", "2.5"});
+}
 
 TEST(Odometry, DeadReckoningStartsAtTheFirstReferenceTime) {
   // Increments at or before the start pose's time brought the robot there: they are skipped.

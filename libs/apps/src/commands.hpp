@@ -27,6 +27,7 @@ struct RunOptions {
   bool allow_bad_time = false;           ///< score a recording whose timestamps have collapsed
   bool allow_partial_reference = false;  ///< score against a reference covering < half the run
   bool strict = false;  ///< exit 3 when a method is flagged (no estimate, low coverage)
+  std::string max_memory;  ///< e.g. "4G"; empty: half of the machine's memory
 };
 
 /// `run` (one method) and `compare` (several): replay, score, write the run directory, print

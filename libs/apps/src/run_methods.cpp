@@ -13,6 +13,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ini_file.hpp"
+#include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -103,7 +104,9 @@ std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptio
       std::fprintf(stderr, "Skipping %s: the dataset has no %s\n", m.c_str(), missing.c_str());
       continue;
     }
-    loc::Registry::builtin().create(m, eval::makeContext(ds, opt.seed), overridesFor(overrides, m));
+    const auto estimator = loc::Registry::builtin().create(m, eval::makeContext(ds, opt.seed),
+                                                           overridesFor(overrides, m));
+    eval::checkRunMemory(ds, *estimator);
     runnable.push_back(m);
   }
   return runnable;
@@ -138,6 +141,14 @@ void RunMethodsCommand::declare(CLI::App& parser) {
   cmd->add_flag("--allow-bad-time", opt.allow_bad_time,
                 "score a recording whose timestamps have collapsed (far fewer distinct stamps "
                 "than messages) instead of refusing it");
+  cmd->add_option("--max-memory", opt.max_memory,
+                  "refuse a run whose estimated memory (recording, particles, map, graph) exceeds "
+                  "this, e.g. 512M or 4G; it also bounds what a corrupt rawlog may make the "
+                  "reader allocate (default: half of this machine's memory)")
+      ->check([](const std::string& text) {
+        return data::parseByteSize(text) ? std::string()
+                                         : "expected a size such as 512M or 4G, got " + text;
+      });
   if (compare_) {
     methods_ = "all";
     cmd->add_option("--methods,-m", methods_,
@@ -156,6 +167,7 @@ void RunMethodsCommand::declare(CLI::App& parser) {
 
 int RunMethodsCommand::run() {
   const RunOptions& opt = options_;
+  if (!opt.max_memory.empty()) data::setMemoryBudget(*data::parseByteSize(opt.max_memory));
   const auto overrides = methodOverrides(opt);
   const std::string data_dir = data::resolveDataDir(opt.data_dir);
   const std::string manifest = data::resolveInputPath(opt.dataset, data_dir);

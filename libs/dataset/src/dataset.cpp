@@ -23,7 +23,7 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
                       "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm', got " +
                           std::to_string(f.size()));
     const double t = parseNumber(f[0], path, line, "t");
-    const int id = static_cast<int>(parseNumber(f[1], path, line, "anchor_id"));
+    const int id = parseId(f[1], path, line, "anchor_id");
     parseNumber(f[2], path, line, "range");
     features[{std::llround(t * 1e6), id}] = {parseNumber(f[3], path, line, "rx_power_dbm"),
                                              parseNumber(f[4], path, line, "fp_power_dbm")};

@@ -38,7 +38,7 @@ TwrFile readHanyangStatic(const std::string& path) {
       char* end = nullptr;
       v[i] = c < f.size() ? std::strtod(f[c].c_str(), &end) : NAN;
       if (c >= f.size() || f[c].empty() || end != f[c].c_str() + f[c].size() ||
-          !std::isfinite(v[i])) {
+          !(std::abs(v[i]) < 9e18)) {  // finite, and within int64 for the timestamps
         ++out.incomplete_rows;
         return;
       }
@@ -77,7 +77,7 @@ uwb::Anchor readAnchorFile(const std::string& file, const HanyangImportParams& p
     if (!f.empty() && f[0] == "%time") return;
     if (f.size() != 9)
       throwInputError(file, line, "expected 9 fields, got " + std::to_string(f.size()));
-    const int id = static_cast<int>(parseNumber(f[2], file, line, "field.id"));
+    const int id = parseId(f[2], file, line, "field.id");
     const Eigen::Vector3d pos(parseNumber(f[3], file, line, "field.x"),
                               parseNumber(f[4], file, line, "field.y"),
                               parseNumber(f[5], file, line, "field.z"));

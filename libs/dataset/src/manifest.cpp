@@ -100,10 +100,7 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
     if (f.size() != 4)
       throwInputError(path, line, "expected 4 fields 'id,x,y,z', got " + std::to_string(f.size()));
     uwb::Anchor a;
-    const double id = parseNumber(f[0], path, line, "id");
-    if (!(std::abs(id) < 1e9) || id != std::floor(id))
-      throwInputError(path, line, "anchor id must be an integer, got " + f[0]);
-    a.id = static_cast<int>(id);
+    a.id = parseId(f[0], path, line, "id");
     a.position << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
         parseNumber(f[3], path, line, "z");
     if (!a.position.allFinite()) throwInputError(path, line, "anchor coordinates must be finite");
@@ -165,7 +162,8 @@ std::vector<uwb::Anchor> readAnchors(const IniFile& ini, const std::string& path
         throwInputError(path, ini.lineOf("anchors", base + "ID"),
                         "anchor " + idx + " lacks key '" + base + c + "'");
     uwb::Anchor a;
-    a.id = static_cast<int>(ini.getDouble("anchors", base + "ID"));
+    a.id = parseId(*ini.get("anchors", base + "ID"), path, ini.lineOf("anchors", base + "ID"),
+                   base + "ID");
     a.position << ini.getDouble("anchors", base + "X"), ini.getDouble("anchors", base + "Y"),
         ini.getDouble("anchors", base + "Z");
     if (uwb::findAnchor(anchors, a.id))

@@ -105,7 +105,7 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
   const std::string tl = file("_TL.txt");
   forEachRow(tl, [&](int line, const std::vector<std::string>& f) {
     if (f.size() < 3) throwInputError(tl, line, "expected 'id x y'");
-    anchors.push_back({static_cast<int>(parseNumber(f[0], tl, line, "id")),
+    anchors.push_back({parseId(f[0], tl, line, "id"),
                        {parseNumber(f[1], tl, line, "x"), parseNumber(f[2], tl, line, "y"), 0.0}});
   });
   const std::string td = file("_TD.txt");
@@ -116,7 +116,7 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
     r.t = parseNumber(f[0], td, line, "t");
     if (const char* problem = timestampProblem(r.t))
       return void(++summary.skipped[std::string("range_") + problem]);
-    r.anchor_id = static_cast<int>(parseNumber(f[2], td, line, "beacon"));
+    r.anchor_id = parseId(f[2], td, line, "beacon");
     r.range = parseNumber(f[3], td, line, "range");
     r.tag_on_robot.setZero();
     events.emplace_back(r);

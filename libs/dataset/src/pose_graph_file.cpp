@@ -15,13 +15,16 @@ PoseGraphFile readPoseGraph2D(const std::string& path) {
       if (i >= f.size()) throwInputError(path, line, std::string("missing field '") + what + "'");
       return parseNumber(f[i], path, line, what);
     };
+    auto id = [&](size_t i, const char* what) {
+      if (i >= f.size()) throwInputError(path, line, std::string("missing field '") + what + "'");
+      return parseId(f[i], path, line, what);
+    };
     if (f[0] == "VERTEX2" || f[0] == "VERTEX_SE2") {
-      g.vertices[static_cast<int>(num(1, "id"))] =
-          Eigen::Vector3d(num(2, "x"), num(3, "y"), num(4, "theta"));
+      g.vertices[id(1, "id")] = Eigen::Vector3d(num(2, "x"), num(3, "y"), num(4, "theta"));
     } else if (f[0] == "EDGE2" || f[0] == "EDGE_SE2") {
       PoseGraphFile::Edge e;
-      e.from = static_cast<int>(num(1, "from"));
-      e.to = static_cast<int>(num(2, "to"));
+      e.from = id(1, "from");
+      e.to = id(2, "to");
       e.delta << num(3, "dx"), num(4, "dy"), num(5, "dtheta");
       // The upper triangle, in each format's own order (see the header).
       const bool toro = f[0] == "EDGE2";

@@ -12,12 +12,14 @@
 #include <mrpt/serialization/CArchive.h>
 
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 
 #include "mrpt_scan.hpp"
 #include "odometry_poses.hpp"
 #include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 
 namespace uwbloc::data {
@@ -35,6 +37,17 @@ int tagIdFromLabel(const std::string& label) {
   } catch (const std::exception&) {
     return 0;
   }
+}
+
+// CObservationIMU::has() reads the deserialised flag as a bool, which is undefined for a byte
+// other than 0 or 1 (a corrupt rawlog); the byte is read as what it is (and get(), which reads
+// it too, is not used).
+bool imuHas(const mrpt::obs::CObservationIMU& imu, mrpt::obs::TIMUDataIndex idx) {
+  const auto i = static_cast<size_t>(idx);
+  if (i >= imu.dataIsPresent.size()) return false;
+  unsigned char flag = 0;
+  std::memcpy(&flag, &imu.dataIsPresent[i], 1);
+  return flag != 0;
 }
 
 double toSeconds(mrpt::Clock::time_point t) {
@@ -74,10 +87,15 @@ class Converter {
       rec_.events.emplace_back(std::move(scan));
       ++rec_.counts["scans"];
     } else if (const auto* imu = dynamic_cast<const mrpt::obs::CObservationIMU*>(&obs)) {
+      using namespace mrpt::obs;
+      if (!imuHas(*imu, IMU_X_ACC) || !imuHas(*imu, IMU_Y_ACC) || !imuHas(*imu, IMU_YAW_VEL)) {
+        ++rec_.counts["rejected_imu_without_planar_fields"];
+        return;
+      }
       loc::ImuSample sample;
       sample.t = t;
-      sample.accel << imu->get(mrpt::obs::IMU_X_ACC), imu->get(mrpt::obs::IMU_Y_ACC);
-      sample.gyro_z = imu->get(mrpt::obs::IMU_YAW_VEL);
+      sample.accel << imu->rawMeasurements.at(IMU_X_ACC), imu->rawMeasurements.at(IMU_Y_ACC);
+      sample.gyro_z = imu->rawMeasurements.at(IMU_YAW_VEL);
       rec_.events.emplace_back(sample);
       ++rec_.counts["imu_observations"];
     } else if (const auto* o = dynamic_cast<const mrpt::obs::CObservationOdometry*>(&obs)) {
@@ -162,11 +180,43 @@ std::string mrptCause(const std::string& what) {
   return what.substr(0, std::min<size_t>(end == std::string::npos ? what.size() : end, 160));
 }
 
+/// The length of the (uncompressed) stream: one pass through it, which also finds a gzip stream
+/// that was cut off.
+uint64_t streamLength(const std::string& path) {
+  mrpt::io::CFileGZInputStream in;
+  if (!in.open(path)) throwInputError(path, 0, "cannot open rawlog");
+  std::vector<char> buffer(1 << 20);
+  uint64_t total = 0;
+  try {
+    for (;;) {
+      // gzread's -1 (a damaged or cut-off gzip stream) arrives here as SIZE_MAX.
+      const size_t n = in.Read(buffer.data(), buffer.size());
+      if (n > buffer.size()) throw std::runtime_error("the gzip stream is damaged or cut off");
+      total += n;
+      if (n < buffer.size()) break;
+    }
+  } catch (const std::exception& e) {
+    throwInputError(path, 0,
+                    "corrupt compressed stream after " + std::to_string(total) +
+                        " bytes: " + mrptCause(e.what()));
+  }
+  return total;
+}
+
+/// What deserialising the object at `position` may allocate: a count or a string length read
+/// from the stream cannot describe more than what is left of it (16 bytes in memory per byte in
+/// the stream, a 64 MiB floor), nor more than the memory budget.
+size_t objectAllocationCap(uint64_t length, uint64_t position) {
+  const uint64_t left = length > position ? length - position : 0;
+  const uint64_t cap = std::max<uint64_t>(64ull << 20, 16 * left);
+  return static_cast<size_t>(std::min<uint64_t>(cap, memoryBudget()));
+}
+
 }  // namespace
 
 Recording readRawlog(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throwInputError(path, 0, "rawlog not found");
+  requireRegularFile(path);
+  const uint64_t length = streamLength(path);
   mrpt::io::CFileGZInputStream in;
   if (!in.open(path)) throwInputError(path, 0, "cannot open rawlog");
   auto archive = mrpt::serialization::archiveFrom(in);
@@ -175,28 +225,48 @@ Recording readRawlog(const std::string& path) {
   long objects = 0;
   for (;;) {
     mrpt::serialization::CSerializable::Ptr obj;
+    const uint64_t position = in.getPosition();
+    ScopedAllocationCap cap(objectAllocationCap(length, position));
     try {
       obj = archive.ReadObject();
     } catch (const mrpt::serialization::CExceptionEOF&) {
+      cap.release();
       // A clean end of file: nothing of a next object was read.
       if (in.checkEOF()) break;
       throwInputError(path, 0, "truncated rawlog after " + std::to_string(objects) + " objects");
     } catch (const std::exception& e) {
+      // MRPT wraps what a nested object throws: the cap's refusal is read from the cap itself.
+      cap.release();
+      const std::string cause =
+          cap.refused() != 0
+              ? "it claims " + formatBytes(static_cast<double>(cap.used() + cap.refused())) +
+                    ", more than the " + formatBytes(static_cast<double>(length - position)) +
+                    " left in the stream can describe (a corrupt count or length)"
+              : mrptCause(e.what());
       throwInputError(path, 0,
                       "corrupt or truncated rawlog: object " + std::to_string(objects + 1) +
-                          " (at byte " + std::to_string(in.getPosition()) +
-                          " of the uncompressed stream) cannot be read: " + mrptCause(e.what()));
+                          " (at byte " + std::to_string(position) +
+                          " of the uncompressed stream) cannot be read: " + cause);
     }
+    cap.release();
     ++objects;
     if (!obj) continue;
-    if (const auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj)) {
-      conv.sensoryFrame(*sf);
-    } else if (const auto acts = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(obj)) {
-      conv.actions(*acts);
-    } else if (const auto obs = std::dynamic_pointer_cast<CObservation>(obj)) {
-      conv.observationOnly(*obs);
-    } else {
-      ++rec.counts[std::string("ignored_") + obj->GetRuntimeClass()->className];
+    try {
+      if (const auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(obj)) {
+        conv.sensoryFrame(*sf);
+      } else if (const auto acts = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(obj)) {
+        conv.actions(*acts);
+      } else if (const auto obs = std::dynamic_pointer_cast<CObservation>(obj)) {
+        conv.observationOnly(*obs);
+      } else {
+        ++rec.counts[std::string("ignored_") + obj->GetRuntimeClass()->className];
+      }
+    } catch (const std::exception& e) {
+      // A well-formed object whose contents MRPT's own accessors refuse.
+      throwInputError(path, 0,
+                      "rawlog object " + std::to_string(objects) + " (at byte " +
+                          std::to_string(position) + ", " + obj->GetRuntimeClass()->className +
+                          ") cannot be converted: " + mrptCause(e.what()));
     }
   }
   if (objects == 0) throwInputError(path, 0, "empty rawlog");

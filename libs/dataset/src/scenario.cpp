@@ -211,9 +211,9 @@ void readAnchors(const IniFile& ini, const std::string& path, Scenario& s) {
   for (const auto& key : ini.keys("anchors")) {
     if (key.rfind("anchor_", 0) != 0) continue;  // left unread: reported as unknown below
     const int line = ini.lineOf("anchors", key);
-    const double id = parseNumber(key.substr(7), path, line, key + " (id)");
+    const int id = parseId(key.substr(7), path, line, key + " (id)");
     const auto p = numbers(ini, "anchors", key, 3);
-    s.anchors.push_back({static_cast<int>(id), {p[0], p[1], p[2]}});
+    s.anchors.push_back({id, {p[0], p[1], p[2]}});
   }
   if (s.anchors.empty()) throwInputError(path, 0, "no anchors: add [anchors] anchor_<id> = x y z");
 }
@@ -240,13 +240,12 @@ void readUwb(const IniFile& ini, const std::string& path, Scenario& s) {
     if (key.rfind("rate_", 0) == 0) {
       const double rate = ini.getDouble("uwb", key);
       if (!(rate > 0)) throwInputError(path, ini.lineOf("uwb", key), "'" + key + "' must be > 0");
-      u.anchor_rate[static_cast<int>(
-          parseNumber(key.substr(5), path, ini.lineOf("uwb", key), key))] = rate;
+      u.anchor_rate[parseId(key.substr(5), path, ini.lineOf("uwb", key), key)] = rate;
     }
   for (const auto& key : ini.keys("uwb"))
     if (key.rfind("bias_", 0) == 0)
-      u.anchor_bias[static_cast<int>(parseNumber(key.substr(5), path, ini.lineOf("uwb", key),
-                                                 key))] = ini.getDouble("uwb", key);
+      u.anchor_bias[parseId(key.substr(5), path, ini.lineOf("uwb", key), key)] =
+          ini.getDouble("uwb", key);
   u.features = boolean(ini, "uwb", "features", u.features);
   if (ini.get("uwb", "tag")) {
     const auto t = numbers(ini, "uwb", "tag", 3);

@@ -74,6 +74,15 @@ double parseNumber(const std::string& text, const std::string& file, int line,
   return v;
 }
 
+int parseId(const std::string& text, const std::string& file, int line, const std::string& field) {
+  const double v = parseNumber(text, file, line, field);
+  if (!(std::abs(v) < 1e9) || v != std::floor(v))
+    throwInputError(
+        file, line,
+        "field '" + field + "': expected an integer id (|id| < 1e9), got " + loc::quoteToken(text));
+  return static_cast<int>(v);
+}
+
 const char* timestampProblem(double t) {
   if (!std::isfinite(t)) return "non_finite_time";
   if (t < 0.0) return "negative_time";

@@ -158,7 +158,10 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
       ds.manifest.uwb_sigma = sigma;
       for (const auto& m : methods) {
         if (!missingNeeds(ds, m).empty()) continue;
-        BenchmarkCell c{d.name, variant, m};
+        BenchmarkCell c;
+        c.dataset = d.name;
+        c.variant = variant;
+        c.method = m;
         try {
           const auto s = evaluateMethod(ds, m, o.seeds, 1);
           c.mean_rmse = s.metrics.rmse_2d;

@@ -1,8 +1,12 @@
 #include "uwbloc/evaluation/runner.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
+#include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/localization/registry.hpp"
 
 namespace uwbloc::eval {
@@ -27,6 +31,47 @@ std::string missingNeeds(const data::Dataset& dataset, const std::string& spec) 
   for (const auto& need : info->needs)
     if (!dataset.provides(need)) missing += (missing.empty() ? "" : ", ") + need;
   return missing;
+}
+
+MemoryEstimate estimateRunMemory(const data::Dataset& dataset, const loc::Estimator& estimator) {
+  MemoryEstimate m;
+  auto add = [&m](const std::string& what, double count, double unit) {
+    const double bytes = count * unit;
+    m.bytes += bytes;
+    char text[160];
+    std::snprintf(text, sizeof text, "%s%s: %.3g x %s = %s", m.parts.empty() ? "" : "; ",
+                  what.c_str(), count, data::formatBytes(unit).c_str(),
+                  data::formatBytes(bytes).c_str());
+    m.parts += text;
+  };
+  add("recording events", static_cast<double>(dataset.events.size()), sizeof(loc::Event));
+  double particles = 0.0;
+  bool graph = false;
+  for (const auto& p : estimator.parameters()) {
+    if (p.key == "n" || p.key == "init_n" || p.key == "relocalise_n")
+      particles = std::max(particles, std::strtod(p.value.c_str(), nullptr));
+    graph |= p.key == "noise_rounds";
+  }
+  if (particles > 0) add("particles", particles, 96.0);
+  const auto* info = loc::Registry::builtin().find(estimator.name());
+  const bool uses_map =
+      info && std::find(info->needs.begin(), info->needs.end(), "map") != info->needs.end();
+  if (uses_map && dataset.map)
+    add("likelihood-field cells", static_cast<double>(dataset.map->sizeX()) * dataset.map->sizeY(),
+        8.0);
+  if (graph) add("graph events", static_cast<double>(dataset.events.size()), 2048.0);
+  return m;
+}
+
+void checkRunMemory(const data::Dataset& dataset, const loc::Estimator& estimator) {
+  const MemoryEstimate m = estimateRunMemory(dataset, estimator);
+  const double budget = static_cast<double>(data::memoryBudget());
+  if (m.bytes <= budget) return;
+  throw loc::ParamError("method '" + estimator.name() + "' would need about " +
+                        data::formatBytes(m.bytes) + " (" + m.parts + "), over the limit of " +
+                        data::formatBytes(budget) +
+                        " (--max-memory; by default half of this machine's memory): lower the "
+                        "particle count or raise --max-memory");
 }
 
 RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,

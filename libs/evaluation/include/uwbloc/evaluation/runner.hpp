@@ -35,6 +35,20 @@ loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed);
 /// The dataset lacks something the method needs: returns what (empty when nothing is missing).
 std::string missingNeeds(const data::Dataset& dataset, const std::string& spec);
 
+/// What a run is expected to allocate, and the parts it adds up ("particles: 1e+06 x 96 B =
+/// 92 MiB; ..."). The per-unit sizes were measured (README, "Limits"): 96 B a particle, 8 B a
+/// map cell of the likelihood field, 2 KiB an event for the graph smoothers, the recording at
+/// the size of its events.
+struct MemoryEstimate {
+  double bytes = 0.0;
+  std::string parts;
+};
+MemoryEstimate estimateRunMemory(const data::Dataset& dataset, const loc::Estimator& estimator);
+
+/// Throws loc::ParamError, naming the method, the estimate's parts and the limit, when the
+/// estimate exceeds the memory budget (data::memoryBudget(), set by --max-memory).
+void checkRunMemory(const data::Dataset& dataset, const loc::Estimator& estimator);
+
 /// Replays the dataset through one method. The start pose and time given to the method are the
 /// first ground-truth pose, when there is one.
 RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
