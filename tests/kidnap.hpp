@@ -40,18 +40,19 @@ inline data::Dataset kidnap(const data::Dataset& ds, double t_kidnap, double ski
 inline std::optional<double> recoveryTime(const data::Dataset& ds,
                                           const std::vector<loc::PoseEstimate>& trajectory,
                                           double t_kidnap, double tolerance, double hold) {
-  std::optional<double> since;
+  bool within = false;  // the error has stayed under `tolerance` since `since`
+  double since = 0.0;
   for (const auto& p : trajectory) {
     if (p.t < t_kidnap) continue;
     const auto gt = eval::interpolateGroundTruth(ds.ground_truth, p.t, 1.0);
     if (!gt) continue;
     if ((p.pose.head<2>() - gt->head<2>()).norm() > tolerance) {
-      since.reset();
+      within = false;
       continue;
     }
-    const double first = since.value_or(p.t);
-    since = first;
-    if (p.t - first >= hold) return first - t_kidnap;
+    if (!within) since = p.t;
+    within = true;
+    if (p.t - since >= hold) return since - t_kidnap;
   }
   return std::nullopt;
 }

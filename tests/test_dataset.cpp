@@ -265,6 +265,17 @@ TEST(Rawlog, ACorruptCountIsRefusedBeforeItIsAllocated) {
                                   {path, "object ", "at byte ", "claims", "corrupt count"});
 }
 
+TEST(Rawlog, AStreamThatCrashesMrptsDeserialiserIsAnErrorNotACrash) {
+  // Found by fuzzing: a CActionRobotMovement2D whose estimation method is not odometry and whose
+  // pose PDF is a CPose2D; MRPT reads it into a CPosePDF pointer, gets null and dereferences it.
+  // The deserialiser runs in a child process: the caller gets an error naming the object.
+  const std::string path = std::string(UWBLOC_SOURCE_DIR) +
+                           "/tests/fuzz/corpus/fuzz_rawlog/crash_wrong_class_posepdf.rawlog";
+  expectErrorMentions<InputError>(
+      [&] { data::readRawlog(path); },
+      {path, "deserialiser crashed", "signal 11", "object 2", "at byte "});
+}
+
 TEST(Rawlog, AnImuReadingWithoutThePlanarFieldsIsCountedNotThrown) {
   // MRPT's CObservationIMU::get throws for a field that is not present: a reading with the yaw
   // rate only is rejected and counted; the reading with all three is kept.

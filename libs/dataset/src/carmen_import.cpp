@@ -2,6 +2,7 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -11,6 +12,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/localization/params.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/dataset/text_io.hpp"
@@ -117,7 +119,12 @@ CarmenLog parseCarmen(const std::string& log_path) {
       odometry.odom(num(6, "ipc_timestamp"), {num(0, "x"), num(1, "y"), num(2, "theta")});
     } else if (kind == "FLASER") {
       // FLASER n r1..rn x y theta odom_x odom_y odom_theta ipc_timestamp ipc_hostname logger_ts
-      const auto n = static_cast<size_t>(num(0, "num_readings"));
+      const double readings = num(0, "num_readings");
+      if (!(readings >= 1 && readings <= 1e5) || readings != std::floor(readings))
+        throwInputError(log_path, number,
+                        "field 'num_readings': expected an integer in [1, 100000], got " +
+                            loc::quoteToken(f[0]));
+      const auto n = static_cast<size_t>(readings);
       if (f.size() < n + 10) throwInputError(log_path, number, "FLASER line too short");
       const double t = num(n + 7, "ipc_timestamp");
       const Eigen::Vector3d corrected(num(n + 1, "x"), num(n + 2, "y"), num(n + 3, "theta"));

@@ -1,8 +1,21 @@
 #include "mrpt_scan.hpp"
 
 #include <cmath>
+#include <cstring>
 
 namespace uwbloc::data {
+
+namespace {
+
+// MRPT deserialises a bool as the byte it finds; a corrupt rawlog may hold another value than 0
+// or 1, which is undefined to load as bool: the byte is read as what it is.
+bool byteAsBool(const bool& flag) {
+  unsigned char byte = 0;
+  std::memcpy(&byte, &flag, 1);
+  return byte != 0;
+}
+
+}  // namespace
 
 loc::LaserScan fromMrpt(const mrpt::obs::CObservation2DRangeScan& obs, double t) {
   loc::LaserScan scan;
@@ -12,9 +25,10 @@ loc::LaserScan fromMrpt(const mrpt::obs::CObservation2DRangeScan& obs, double t)
   const size_t n = obs.getScanSize();
   // MRPT spaces the rays by aperture / (N - 1) from -aperture/2 (right to left) or +aperture/2,
   // so a full circle repeats its first direction in the last ray.
-  scan.angle_min = static_cast<float>(obs.rightToLeft ? -obs.aperture / 2 : obs.aperture / 2);
+  const bool right_to_left = byteAsBool(obs.rightToLeft);
+  scan.angle_min = static_cast<float>(right_to_left ? -obs.aperture / 2 : obs.aperture / 2);
   scan.angle_increment =
-      n > 1 ? static_cast<float>((obs.rightToLeft ? 1 : -1) * obs.aperture / (n - 1)) : 0.0f;
+      n > 1 ? static_cast<float>((right_to_left ? 1 : -1) * obs.aperture / (n - 1)) : 0.0f;
   scan.max_range = obs.maxRange;
   scan.ranges.resize(n);
   scan.valid.resize(n);

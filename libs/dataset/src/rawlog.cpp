@@ -214,7 +214,7 @@ size_t objectAllocationCap(uint64_t length, uint64_t position) {
 
 }  // namespace
 
-Recording readRawlog(const std::string& path) {
+Recording readRawlogInProcess(const std::string& path, RawlogProgress* progress) {
   requireRegularFile(path);
   const uint64_t length = streamLength(path);
   mrpt::io::CFileGZInputStream in;
@@ -226,6 +226,10 @@ Recording readRawlog(const std::string& path) {
   for (;;) {
     mrpt::serialization::CSerializable::Ptr obj;
     const uint64_t position = in.getPosition();
+    if (progress) {
+      progress->objects = static_cast<uint64_t>(objects);
+      progress->position = position;
+    }
     ScopedAllocationCap cap(objectAllocationCap(length, position));
     try {
       obj = archive.ReadObject();

@@ -365,7 +365,6 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
 
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(s.anchors));
   writeFileAtomic((out / "range_truth.csv").string(), formatRangeTruth(sim.range_truth));
-  char buf[256];
 
   if (s.uwb.features)
     writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(sim.events));

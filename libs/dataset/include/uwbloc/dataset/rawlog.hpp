@@ -1,6 +1,7 @@
 // MRPT rawlog <-> our event stream. MRPT types stop here.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -18,7 +19,10 @@ struct Recording {
   std::map<std::string, long> counts;  ///< objects read, per kind, and repaired timestamps
 };
 
-/// Reads both rawlog layouts (action + sensory frame pairs, and observations only).
+/// Reads both rawlog layouts (action + sensory frame pairs, and observations only). MRPT's
+/// deserialiser runs in a child process (rawlog_sandbox.cpp): a rawlog that crashes it, or
+/// makes it allocate beyond the memory budget, is an InputError naming the object and its byte
+/// offset, never a crash of the caller.
 ///  - CObservationBeaconRanges -> uwb::Range (one per beacon; the sensor pose on the robot kept)
 ///  - CObservation2DRangeScan  -> loc::LaserScan
 ///  - CActionRobotMovement2D   -> loc::OdometryIncrement, stamped with the time of the sensory
@@ -27,6 +31,17 @@ struct Recording {
 /// Observations with no timestamp take the time of their sensory frame (its first timestamped
 /// observation). Throws InputError naming the file for a missing, truncated or corrupt rawlog.
 Recording readRawlog(const std::string& path);
+
+/// Where the reader is: objects read so far, and the byte offset (in the uncompressed stream) of
+/// the object being read.
+struct RawlogProgress {
+  uint64_t objects = 0;
+  uint64_t position = 0;
+};
+
+/// readRawlog's work, in the calling process: MRPT's deserialiser may crash on a corrupt stream
+/// (a null pointer it dereferences). `progress`, when given, is updated before each object.
+Recording readRawlogInProcess(const std::string& path, RawlogProgress* progress = nullptr);
 
 /// Writes events as an observation-only rawlog (gzip-compressed): consecutive ranges with the
 /// same timestamp become one CObservationBeaconRanges; odometry increments are accumulated into
