@@ -226,7 +226,7 @@ TEST(SyntheticLoop, ParticleFilterLearnsTheRangeModel) {
 }
 
 // The kidnapped robot in the simulated room (240 s, carried 8 s along its path, 2.4 m, at
-// t = 100 s), relocalisation on (lost_scans=3; it is off by default, see LidarPartParams): the
+// t = 100 s), with the defaults (relocalisation after 10 scans that do not fit): the
 // fused filters find that the scans no longer fit the map at their best particle,
 // spread their particles over the map again (event "relocalised") and recover, the ranges
 // telling the room's symmetric twins apart. LiDAR alone (lidar-mcl) relocalises too, but may
@@ -239,8 +239,8 @@ TEST(KidnappedRobot, LidarFiltersRelocaliseInTheRoom) {
       data::writeSimulation(s, 1, (test::scratchDir() / "kidnap_room").string()), "");
   const double t_kidnap = full.start_time + 100.0;
   const data::Dataset ds = test::kidnap(full, t_kidnap, 8.0);
-  for (const std::string m : {"lidar-mcl", "fused-pf", "pf-ibas"}) {
-    const auto run = eval::runMethod(ds, m + ":lost_scans=3", 1);
+  for (const std::string m : {"lidar-mcl", "fused-pf", "pf-sir", "pf-ibas"}) {
+    const auto run = eval::runMethod(ds, m, 1);
     const bool asserted = m != "lidar-mcl";
     const auto recovery = test::recoveryTime(ds, run.trajectory, t_kidnap, 0.2, 5.0);
     const auto events = run.statistics.events;

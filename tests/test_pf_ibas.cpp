@@ -250,13 +250,12 @@ TEST(MrptDemo, NlosTestStepsAsideWhenThePoseIsWrong) {
 }
 
 // The kidnapped robot on the MRPT demo: at 150 s the robot is carried to where it was 30 s
-// later (no odometry of the move). With relocalisation on (lost_scans=3), the fused filters
-// relocalise and recover.
+// later (no odometry of the move). With the defaults, the fused filters relocalise and recover.
 TEST(KidnappedRobot, FusedFiltersRelocaliseOnTheDemo) {
   const double t_kidnap = demo().start_time + 150.0;
   const data::Dataset ds = test::kidnap(demo(), t_kidnap, 30.0);
-  for (const std::string m : {"fused-pf", "pf-ibas"}) {
-    const auto run = eval::runMethod(ds, m + ":lost_scans=3", 1);
+  for (const std::string m : {"fused-pf", "pf-sir", "pf-ibas"}) {
+    const auto run = eval::runMethod(ds, m, 1);
     const auto recovery = test::recoveryTime(ds, run.trajectory, t_kidnap, 0.4, 10.0);
     const auto& events = run.statistics.events;
     std::printf("[ KIDNAP   ] demo %-10s relocalised %ld time, recovered after %.1f s\n", m.c_str(),

@@ -64,7 +64,10 @@ int MethodsCommand::run() {
                  "| `--runs`, `--population`, `--iterations` (bench-optimizers) | [1, 1e5], "
                  "[1, 1e5], [1, 1e6] | |\n"
                  "| `--dim` (bench-optimizers) | [1, 32] | |\n"
-                 "Every other numeric parameter must be finite.\n";
+                 "| `--max-memory` (run, compare) | a size such as `512M`, `4G` (default: half "
+                 "of the machine's memory) | a run whose estimated memory exceeds it is refused "
+                 "before it starts |\n"
+                 "\nEvery other numeric parameter must be finite.\n";
     return kSuccess;
   }
   for (const auto& m : loc::Registry::builtin().methods()) {
