@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "uwbloc/localization/kalman/kalman.hpp"
+#include "uwbloc/localization/kalman/sage_husa.hpp"
 
 using namespace uwbloc;
 using namespace uwbloc::loc::kalman;
@@ -78,4 +79,67 @@ TEST(Kalman, StartFromAFixAndTheTagTrackPose) {
   EXPECT_FALSE(est.heading_valid);
   EXPECT_NEAR(est.covariance(2, 2), M_PI * M_PI, 1e-12);
   EXPECT_NEAR(est.covariance(1, 1), 0.09, 1e-15);
+}
+
+// The Sage-Husa step (greenhouse eq. 15-16, 24) on one scalar state, by hand: F = H = 1,
+// x = 0, P = 1, q̂ = 0, Q̂ = 0.5, r̂ = 0, R̂ = 1, z = 2, b = 0.5 at k = 1, so d = 0.5 / 0.75 = 2/3.
+//   predict x = 0, P = 1.5; e = 2, S = 2.5, K = 0.6; x = 1.2, P = 0.4^2 1.5 + 0.6^2 = 0.6;
+//   q̂ = 2/3 * 1.2 = 0.8;  Q̂ = 1/3 * 0.5 + 2/3 (0.36 * 4 + 0.6 - 1) = 0.86;
+//   r̂ = 2/3 * 2 = 4/3;    R̂ = 1/3 + 2/3 (4 - 1.5) = 2.
+TEST(SageHusa, OneAdaptiveStepByHand) {
+  Vec<1> x(0.0);
+  Mat<1, 1> p(1.0);
+  SageHusaNoise<1, 1> noise;
+  noise.Q(0, 0) = 0.5;
+  noise.R(0, 0) = 1.0;
+  noise.k = 1;
+  const auto step = sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0),
+                                       0.5, 0.0, 0.01);
+  EXPECT_NEAR(step.d, 2.0 / 3.0, 1e-12);
+  EXPECT_FALSE(step.diverged);
+  EXPECT_NEAR(x(0), 1.2, 1e-12);
+  EXPECT_NEAR(p(0, 0), 0.6, 1e-12);
+  EXPECT_NEAR(noise.q(0), 0.8, 1e-12);
+  EXPECT_NEAR(noise.Q(0, 0), 0.86, 1e-12);
+  EXPECT_NEAR(noise.r(0), 4.0 / 3.0, 1e-12);
+  EXPECT_NEAR(noise.R(0, 0), 2.0, 1e-12);
+  EXPECT_EQ(noise.k, 2);
+  EXPECT_NEAR(sageHusaWeight(0.5, 0), 1.0, 1e-12);  // d_0 = 1: the first step replaces
+}
+
+// The same step with the IAKF's divergence test (gamma = 1): e'e = 4 > tr(S) = 2.5, so eq. (22)
+// gives C = (4 - (0.5 + 1)) / 1 = 2.5 and eq. (21) P = 2.5 * 1 + 0.5 = 3; then S = 4, K = 0.75,
+// x = 1.5, P = 0.25^2 3 + 0.75^2 = 0.75; q̂ = 1, Q̂ = 1/6 + 2/3 (0.5625 * 4 + 0.75 - 1) = 1.5,
+// R̂ = 1/3 + 2/3 (4 - 3) = 1.
+TEST(SageHusa, TheDivergenceTestInflatesThePrediction) {
+  Vec<1> x(0.0);
+  Mat<1, 1> p(1.0);
+  SageHusaNoise<1, 1> noise;
+  noise.Q(0, 0) = 0.5;
+  noise.R(0, 0) = 1.0;
+  noise.k = 1;
+  const auto step = sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0),
+                                       0.5, 1.0, 0.01);
+  EXPECT_TRUE(step.diverged);
+  EXPECT_NEAR(step.inflation, 2.5, 1e-12);
+  EXPECT_NEAR(x(0), 1.5, 1e-12);
+  EXPECT_NEAR(p(0, 0), 0.75, 1e-12);
+  EXPECT_NEAR(noise.q(0), 1.0, 1e-12);
+  EXPECT_NEAR(noise.Q(0, 0), 1.5, 1e-12);
+  EXPECT_NEAR(noise.R(0, 0), 1.0, 1e-12);
+}
+
+// The positivity guard: a measurement on the prediction (e = 0) makes the printed R update
+// 1/3 + 2/3 (0 - 1.5) = -2/3; R̂ is kept at r_floor^2 and the projection is reported.
+TEST(SageHusa, TheEstimatedRStaysPositiveDefinite) {
+  Vec<1> x(0.0);
+  Mat<1, 1> p(1.0);
+  SageHusaNoise<1, 1> noise;
+  noise.Q(0, 0) = 0.5;
+  noise.R(0, 0) = 1.0;
+  noise.k = 1;
+  const auto step = sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(0.0), Mat<1, 1>(1.0),
+                                       0.5, 0.0, 0.1);
+  EXPECT_TRUE(step.r_projected);
+  EXPECT_NEAR(noise.R(0, 0), 0.01, 1e-12);
 }

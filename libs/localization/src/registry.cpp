@@ -3,6 +3,7 @@
 #include "uwbloc/localization/methods/graph_smoother.hpp"
 #include "uwbloc/localization/methods/multilateration_estimator.hpp"
 #include "uwbloc/localization/methods/odometry_estimator.hpp"
+#include "uwbloc/localization/methods/uwb_akf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
 
@@ -32,6 +33,25 @@ Registry makeBuiltin() {
   r.add(makeMethod<UwbKf, UwbKfParams>(
       "uwb-kf", "UWB only: constant-velocity KF on multilateration fixes (loosely coupled)",
       {"ranges"}));
+  r.add(makeMethod<UwbAkf, UwbAkfParams>(
+      "uwb-akf",
+      "UWB only: Sage-Husa adaptive KF on multilateration fixes (greenhouse paper eq. 15-16)",
+      {"ranges"}));
+  {
+    auto iakf = makeMethod<UwbAkf, UwbAkfParams>(
+        "uwb-iakf",
+        "UWB only: the greenhouse paper's improved adaptive KF: uwb-akf with the divergence test "
+        "and covariance inflation of eq. 17-23",
+        {"ranges"});
+    auto make = iakf.make;
+    iakf.make = [make](ParamSet& set, const EstimatorContext& ctx) {
+      if (!set.has("gamma")) set.set("gamma", "1");
+      return make(set, ctx);
+    };
+    for (auto& d : iakf.defaults)
+      if (d.key == "gamma") d.value = "1";
+    r.add(iakf);
+  }
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
       "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
       {"ranges"}));

@@ -47,15 +47,20 @@ class UwbKf : public EpochUwbEstimator {
  protected:
   std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) override;
   void reset() override { initialised_ = false; }
+  /// Starts the state from a fix (the adaptive filters also start their noise statistics).
+  virtual void start(const uwb::Fix& fix);
+  /// Predicts over dt and updates with the fix; false when the update was refused (gated).
+  virtual bool predictAndUpdate(const uwb::Fix& fix, double dt);
+
+  UwbKfParams params_;
+  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
 
  private:
-  UwbKfParams params_;
   HeadingFromMotion heading_;
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
   double t_ = 0.0;
-  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
-  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
 };
 
 }  // namespace uwbloc::loc
