@@ -85,8 +85,8 @@ TEST(Carmen, CorrectedPoseCopiesAndBadStampsAreDroppedAndCounted) {
 TEST(Carmen, AReadingCountThatIsNoCountIsAnErrorNamingTheLine) {
   // Found by fuzzing: a FLASER count of -34.2 was converted to size_t (undefined behaviour).
   const auto dir = test::scratchDir();
-  const auto log = test::writeText(dir / "x.log", odom(1.0, {0, 0, 0}) +
-                                                      "FLASER -34.2 1 1 0 0 0 0 0 0 2.0 h 2.0\n");
+  const auto log = test::writeText(
+      dir / "x.log", odom(1.0, {0, 0, 0}) + "FLASER -34.2 1 1 0 0 0 0 0 0 2.0 h 2.0\n");
   test::expectErrorMentions<data::InputError>(
       [&] { data::importCarmen(log, (dir / "out").string()); },
       {log + ":2", "num_readings", "-34.2"});

@@ -81,20 +81,29 @@ TEST(Kalman, StartFromAFixAndTheTagTrackPose) {
   EXPECT_NEAR(est.covariance(1, 1), 0.09, 1e-15);
 }
 
+// One scalar state for the Sage-Husa cases: x = 0, P = 1, q̂ = 0, Q̂ = 0.5, r̂ = 0, R̂ = 1, k = 1.
+struct ScalarCase {
+  Vec<1> x = Vec<1>(0.0);
+  Mat<1, 1> p = Mat<1, 1>(1.0);
+  SageHusaNoise<1, 1> noise = [] {
+    SageHusaNoise<1, 1> n;
+    n.Q(0, 0) = 0.5;
+    n.R(0, 0) = 1.0;
+    n.k = 1;
+    return n;
+  }();
+};
+
 // The Sage-Husa step (greenhouse eq. 15-16, 24) on one scalar state, by hand: F = H = 1,
 // x = 0, P = 1, q̂ = 0, Q̂ = 0.5, r̂ = 0, R̂ = 1, z = 2, b = 0.5 at k = 1, so d = 0.5 / 0.75 = 2/3.
 //   predict x = 0, P = 1.5; e = 2, S = 2.5, K = 0.6; x = 1.2, P = 0.4^2 1.5 + 0.6^2 = 0.6;
 //   q̂ = 2/3 * 1.2 = 0.8;  Q̂ = 1/3 * 0.5 + 2/3 (0.36 * 4 + 0.6 - 1) = 0.86;
 //   r̂ = 2/3 * 2 = 4/3;    R̂ = 1/3 + 2/3 (4 - 1.5) = 2.
 TEST(SageHusa, OneAdaptiveStepByHand) {
-  Vec<1> x(0.0);
-  Mat<1, 1> p(1.0);
-  SageHusaNoise<1, 1> noise;
-  noise.Q(0, 0) = 0.5;
-  noise.R(0, 0) = 1.0;
-  noise.k = 1;
-  const auto step = sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0),
-                                       0.5, 0.0, 0.01);
+  ScalarCase c;
+  auto& [x, p, noise] = c;
+  const auto step =
+      sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0), 0.5, 0.0, 0.01);
   EXPECT_NEAR(step.d, 2.0 / 3.0, 1e-12);
   EXPECT_FALSE(step.diverged);
   EXPECT_NEAR(x(0), 1.2, 1e-12);
@@ -112,14 +121,10 @@ TEST(SageHusa, OneAdaptiveStepByHand) {
 // x = 1.5, P = 0.25^2 3 + 0.75^2 = 0.75; q̂ = 1, Q̂ = 1/6 + 2/3 (0.5625 * 4 + 0.75 - 1) = 1.5,
 // R̂ = 1/3 + 2/3 (4 - 3) = 1.
 TEST(SageHusa, TheDivergenceTestInflatesThePrediction) {
-  Vec<1> x(0.0);
-  Mat<1, 1> p(1.0);
-  SageHusaNoise<1, 1> noise;
-  noise.Q(0, 0) = 0.5;
-  noise.R(0, 0) = 1.0;
-  noise.k = 1;
-  const auto step = sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0),
-                                       0.5, 1.0, 0.01);
+  ScalarCase c;
+  auto& [x, p, noise] = c;
+  const auto step =
+      sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0), 0.5, 1.0, 0.01);
   EXPECT_TRUE(step.diverged);
   EXPECT_NEAR(step.inflation, 2.5, 1e-12);
   EXPECT_NEAR(x(0), 1.5, 1e-12);
@@ -132,14 +137,10 @@ TEST(SageHusa, TheDivergenceTestInflatesThePrediction) {
 // The positivity guard: a measurement on the prediction (e = 0) makes the printed R update
 // 1/3 + 2/3 (0 - 1.5) = -2/3; R̂ is kept at r_floor^2 and the projection is reported.
 TEST(SageHusa, TheEstimatedRStaysPositiveDefinite) {
-  Vec<1> x(0.0);
-  Mat<1, 1> p(1.0);
-  SageHusaNoise<1, 1> noise;
-  noise.Q(0, 0) = 0.5;
-  noise.R(0, 0) = 1.0;
-  noise.k = 1;
-  const auto step = sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(0.0), Mat<1, 1>(1.0),
-                                       0.5, 0.0, 0.1);
+  ScalarCase c;
+  auto& [x, p, noise] = c;
+  const auto step =
+      sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(0.0), Mat<1, 1>(1.0), 0.5, 0.0, 0.1);
   EXPECT_TRUE(step.r_projected);
   EXPECT_NEAR(noise.R(0, 0), 0.01, 1e-12);
 }

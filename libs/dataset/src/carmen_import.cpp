@@ -12,10 +12,10 @@
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
-#include "uwbloc/localization/params.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/localization/params.hpp"
 
 namespace fs = std::filesystem;
 

@@ -22,6 +22,19 @@ MethodInfo multilaterationMethod(const std::string& name, const std::string& des
       });
 }
 
+// A registered method whose parameter `key` defaults to `value` (another method's estimator with
+// one default changed): applied unless the spec, --set or --config gives the key.
+MethodInfo withDefault(MethodInfo info, const std::string& key, const std::string& value) {
+  auto make = info.make;
+  info.make = [make, key, value](ParamSet& set, const EstimatorContext& ctx) {
+    if (!set.has(key)) set.set(key, value);
+    return make(set, ctx);
+  };
+  for (auto& d : info.defaults)
+    if (d.key == key) d.value = value;
+  return info;
+}
+
 Registry makeBuiltin() {
   Registry r;
   r.add(multilaterationMethod("uwb-ls", "UWB only: linearised least squares per epoch",
@@ -37,21 +50,12 @@ Registry makeBuiltin() {
       "uwb-akf",
       "UWB only: Sage-Husa adaptive KF on multilateration fixes (greenhouse paper eq. 15-16)",
       {"ranges"}));
-  {
-    auto iakf = makeMethod<UwbAkf, UwbAkfParams>(
-        "uwb-iakf",
-        "UWB only: the greenhouse paper's improved adaptive KF: uwb-akf with the divergence test "
-        "and covariance inflation of eq. 17-23",
-        {"ranges"});
-    auto make = iakf.make;
-    iakf.make = [make](ParamSet& set, const EstimatorContext& ctx) {
-      if (!set.has("gamma")) set.set("gamma", "1");
-      return make(set, ctx);
-    };
-    for (auto& d : iakf.defaults)
-      if (d.key == "gamma") d.value = "1";
-    r.add(iakf);
-  }
+  r.add(withDefault(makeMethod<UwbAkf, UwbAkfParams>(
+                        "uwb-iakf",
+                        "UWB only: the greenhouse paper's improved adaptive KF: uwb-akf with the "
+                        "divergence test and covariance inflation of eq. 17-23",
+                        {"ranges"}),
+                    "gamma", "1"));
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
       "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
       {"ranges"}));
@@ -63,22 +67,13 @@ Registry makeBuiltin() {
       "Batch smoothing of range + odometry over a Ceres graph (robust loss, optional bias and "
       "anchor self-calibration)",
       {"odometry", "ranges"}));
-  {
-    auto full = makeMethod<GraphSmoother, GraphSmootherParams>(
-        "pf-ibas+graph",
-        "The PF-IBAS paper's full method: PF-IBAS online, then its estimates smoothed over a "
-        "Ceres graph with the ranges and the odometry (front-end parameters: "
-        "front=pf-ibas:k=v;k=v)",
-        {"scans", "odometry", "map", "ranges"});
-    auto make = full.make;
-    full.make = [make](ParamSet& set, const EstimatorContext& ctx) {
-      if (!set.has("front")) set.set("front", "pf-ibas");
-      return make(set, ctx);
-    };
-    for (auto& d : full.defaults)
-      if (d.key == "front") d.value = "pf-ibas";
-    r.add(full);
-  }
+  r.add(withDefault(makeMethod<GraphSmoother, GraphSmootherParams>(
+                        "pf-ibas+graph",
+                        "The PF-IBAS paper's full method: PF-IBAS online, then its estimates "
+                        "smoothed over a Ceres graph with the ranges and the odometry (front-end "
+                        "parameters: front=pf-ibas:k=v;k=v)",
+                        {"scans", "odometry", "map", "ranges"}),
+                    "front", "pf-ibas"));
   return r;
 }
 

@@ -23,8 +23,8 @@ bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   }
   Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
   h.leftCols<2>().setIdentity();
-  const auto step = kalman::sageHusaStep<4, 2>(x_, p_, noise_, f, fix.position, h,
-                                               akf_.forgetting, akf_.gamma, akf_.r_floor);
+  const auto step = kalman::sageHusaStep<4, 2>(x_, p_, noise_, f, fix.position, h, akf_.forgetting,
+                                               akf_.gamma, akf_.r_floor);
   if (step.diverged) ++stats_.events["divergence_inflated"];
   if (step.r_projected) ++stats_.events["r_kept_positive"];
   if (step.q_projected) ++stats_.events["q_kept_positive"];

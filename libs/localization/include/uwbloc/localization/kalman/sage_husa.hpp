@@ -46,11 +46,11 @@ inline double sageHusaWeight(double b, long k) {
 
 /// What one adaptive step did.
 struct SageHusaStep {
-  double d = 0.0;           ///< the weight d_k used
-  bool diverged = false;    ///< eq. (20) held (IAKF only)
-  double inflation = 1.0;   ///< C_k of eq. (22) (1 when not diverged)
-  bool r_projected = false; ///< R̂ had an eigenvalue below r_floor^2
-  bool q_projected = false; ///< Q̂ had a negative eigenvalue
+  double d = 0.0;            ///< the weight d_k used
+  bool diverged = false;     ///< eq. (20) held (IAKF only)
+  double inflation = 1.0;    ///< C_k of eq. (22) (1 when not diverged)
+  bool r_projected = false;  ///< R̂ had an eigenvalue below r_floor^2
+  bool q_projected = false;  ///< Q̂ had a negative eigenvalue
 };
 
 /// The symmetric part of `a` with its eigenvalues raised to at least `floor`; true when any was.
@@ -88,10 +88,9 @@ SageHusaStep sageHusaStep(Vec<N>& x, Mat<N, N>& p, SageHusaNoise<N, M>& noise, c
     if (ete > gamma * expected.trace()) {
       out.diverged = true;
       const double denom = (h * fpf * h.transpose()).trace();
-      const double c = denom > 0.0
-                           ? (ete - (h * noise.Q * h.transpose() + noise.R).trace()) / denom
-                           : 1.0;
-      out.inflation = std::max(1.0, c);  // eq. (22), inflating only
+      const double c =
+          denom > 0.0 ? (ete - (h * noise.Q * h.transpose() + noise.R).trace()) / denom : 1.0;
+      out.inflation = std::max(1.0, c);        // eq. (22), inflating only
       p_pred = out.inflation * fpf + noise.Q;  // eq. (21) / (23)
     }
   }
