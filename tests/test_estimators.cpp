@@ -382,3 +382,21 @@ TEST(Registry, EveryDefaultIsInsideItsLimits) {
       EXPECT_NO_THROW(loc::checkLimit(m.name, p.key, v)) << m.name << " " << p.key << "=" << v;
     }
 }
+
+// The adaptive filters coupled tightly (mode=ranges: a Sage-Husa statistic per anchor on each
+// range's innovation) run on the room with full coverage and no NaN; their accuracy there is
+// printed and bounded like the other methods'.
+TEST(AdaptiveKalman, TightlyCoupledModeRunsOnTheRoom) {
+  const std::map<std::string, double> bound = {{"uwb-akf:mode=ranges", 0.45},
+                                               {"uwb-iakf:mode=ranges", 1.3}};
+  for (const auto& [m, rmse_bound] : bound) {
+    const auto run = eval::runMethod(room(), m, 1);
+    const auto metrics = eval::computeMetrics(eval::associate(run.trajectory, room().ground_truth),
+                                              run.trajectory, room().ground_truth);
+    std::printf("[ ROOM     ] %-20s rmse_2d %.4f m, coverage %.3f\n", m.c_str(), metrics.rmse_2d,
+                metrics.coverage);
+    EXPECT_GE(metrics.coverage, 0.9) << m;
+    EXPECT_LT(metrics.rmse_2d, rmse_bound) << m;
+    EXPECT_EQ(run.statistics.rejected.count("non_finite_estimate"), 0u) << m;
+  }
+}

@@ -85,13 +85,12 @@ TEST(Kalman, StartFromAFixAndTheTagTrackPose) {
 struct ScalarCase {
   Vec<1> x = Vec<1>(0.0);
   Mat<1, 1> p = Mat<1, 1>(1.0);
-  SageHusaNoise<1, 1> noise = [] {
-    SageHusaNoise<1, 1> n;
-    n.Q(0, 0) = 0.5;
-    n.R(0, 0) = 1.0;
-    n.k = 1;
-    return n;
-  }();
+  SageHusaProcess<1> process{Vec<1>(0.0), Mat<1, 1>(0.5), 1};
+  SageHusaMeasurement<1> meas{Vec<1>(0.0), Mat<1, 1>(1.0), 1};
+  SageHusaStep step(double z, double gamma, double r_floor) {
+    return sageHusaStep<1, 1>(x, p, process, meas, Mat<1, 1>(1.0), Vec<1>(z), Mat<1, 1>(1.0), 0.5,
+                              gamma, r_floor);
+  }
 };
 
 // The Sage-Husa step (greenhouse eq. 15-16, 24) on one scalar state, by hand: F = H = 1,
@@ -101,18 +100,17 @@ struct ScalarCase {
 //   r̂ = 2/3 * 2 = 4/3;    R̂ = 1/3 + 2/3 (4 - 1.5) = 2.
 TEST(SageHusa, OneAdaptiveStepByHand) {
   ScalarCase c;
-  auto& [x, p, noise] = c;
-  const auto step =
-      sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0), 0.5, 0.0, 0.01);
+  const auto step = c.step(2.0, 0.0, 0.01);
   EXPECT_NEAR(step.d, 2.0 / 3.0, 1e-12);
   EXPECT_FALSE(step.diverged);
-  EXPECT_NEAR(x(0), 1.2, 1e-12);
-  EXPECT_NEAR(p(0, 0), 0.6, 1e-12);
-  EXPECT_NEAR(noise.q(0), 0.8, 1e-12);
-  EXPECT_NEAR(noise.Q(0, 0), 0.86, 1e-12);
-  EXPECT_NEAR(noise.r(0), 4.0 / 3.0, 1e-12);
-  EXPECT_NEAR(noise.R(0, 0), 2.0, 1e-12);
-  EXPECT_EQ(noise.k, 2);
+  EXPECT_NEAR(c.x(0), 1.2, 1e-12);
+  EXPECT_NEAR(c.p(0, 0), 0.6, 1e-12);
+  EXPECT_NEAR(c.process.q(0), 0.8, 1e-12);
+  EXPECT_NEAR(c.process.Q(0, 0), 0.86, 1e-12);
+  EXPECT_NEAR(c.meas.r(0), 4.0 / 3.0, 1e-12);
+  EXPECT_NEAR(c.meas.R(0, 0), 2.0, 1e-12);
+  EXPECT_EQ(c.meas.k, 2);
+  EXPECT_EQ(c.process.k, 2);
   EXPECT_NEAR(sageHusaWeight(0.5, 0), 1.0, 1e-12);  // d_0 = 1: the first step replaces
 }
 
@@ -122,25 +120,21 @@ TEST(SageHusa, OneAdaptiveStepByHand) {
 // R̂ = 1/3 + 2/3 (4 - 3) = 1.
 TEST(SageHusa, TheDivergenceTestInflatesThePrediction) {
   ScalarCase c;
-  auto& [x, p, noise] = c;
-  const auto step =
-      sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(2.0), Mat<1, 1>(1.0), 0.5, 1.0, 0.01);
+  const auto step = c.step(2.0, 1.0, 0.01);
   EXPECT_TRUE(step.diverged);
   EXPECT_NEAR(step.inflation, 2.5, 1e-12);
-  EXPECT_NEAR(x(0), 1.5, 1e-12);
-  EXPECT_NEAR(p(0, 0), 0.75, 1e-12);
-  EXPECT_NEAR(noise.q(0), 1.0, 1e-12);
-  EXPECT_NEAR(noise.Q(0, 0), 1.5, 1e-12);
-  EXPECT_NEAR(noise.R(0, 0), 1.0, 1e-12);
+  EXPECT_NEAR(c.x(0), 1.5, 1e-12);
+  EXPECT_NEAR(c.p(0, 0), 0.75, 1e-12);
+  EXPECT_NEAR(c.process.q(0), 1.0, 1e-12);
+  EXPECT_NEAR(c.process.Q(0, 0), 1.5, 1e-12);
+  EXPECT_NEAR(c.meas.R(0, 0), 1.0, 1e-12);
 }
 
 // The positivity guard: a measurement on the prediction (e = 0) makes the printed R update
 // 1/3 + 2/3 (0 - 1.5) = -2/3; R̂ is kept at r_floor^2 and the projection is reported.
 TEST(SageHusa, TheEstimatedRStaysPositiveDefinite) {
   ScalarCase c;
-  auto& [x, p, noise] = c;
-  const auto step =
-      sageHusaStep<1, 1>(x, p, noise, Mat<1, 1>(1.0), Vec<1>(0.0), Mat<1, 1>(1.0), 0.5, 0.0, 0.1);
+  const auto step = c.step(0.0, 0.0, 0.1);
   EXPECT_TRUE(step.r_projected);
-  EXPECT_NEAR(noise.R(0, 0), 0.01, 1e-12);
+  EXPECT_NEAR(c.meas.R(0, 0), 0.01, 1e-12);
 }

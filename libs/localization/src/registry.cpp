@@ -48,13 +48,14 @@ Registry makeBuiltin() {
       {"ranges"}));
   r.add(makeMethod<UwbAkf, UwbAkfParams>(
       "uwb-akf",
-      "UWB only: Sage-Husa adaptive KF on multilateration fixes (greenhouse paper eq. 15-16)",
-      {"ranges"}));
+      "UWB only: Sage-Husa adaptive KF on multilateration fixes (greenhouse paper eq. 15-16; "
+      "mode=ranges: on each range)",
+      {"ranges"}, makeUwbAkf));
   r.add(withDefault(makeMethod<UwbAkf, UwbAkfParams>(
                         "uwb-iakf",
                         "UWB only: the greenhouse paper's improved adaptive KF: uwb-akf with the "
                         "divergence test and covariance inflation of eq. 17-23",
-                        {"ranges"}),
+                        {"ranges"}, makeUwbAkf),
                     "gamma", "1"));
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
       "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",

@@ -9,8 +9,9 @@ UwbAkf::UwbAkf(const UwbAkfParams& params, const EstimatorContext& context)
 
 void UwbAkf::start(const uwb::Fix& fix) {
   UwbKf::start(fix);
-  noise_ = {};
-  noise_.R = fix.covariance;
+  process_ = {};
+  measurement_ = {};
+  measurement_.R = fix.covariance;
   noise_started_ = false;  // Q̂_0 waits for the first interval
 }
 
@@ -18,17 +19,73 @@ bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   Eigen::Matrix4d f, q;
   constantVelocityModel(dt, params_.accel_psd, f, q, params_.velocity_tau);
   if (!noise_started_) {
-    noise_.Q = q;
+    process_.Q = q;
     noise_started_ = true;
   }
   Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
   h.leftCols<2>().setIdentity();
-  const auto step = kalman::sageHusaStep<4, 2>(x_, p_, noise_, f, fix.position, h, akf_.forgetting,
-                                               akf_.gamma, akf_.r_floor);
+  const auto step = kalman::sageHusaStep<4, 2>(x_, p_, process_, measurement_, f, fix.position, h,
+                                               akf_.forgetting, akf_.gamma, akf_.r_floor);
   if (step.diverged) ++stats_.events["divergence_inflated"];
   if (step.r_projected) ++stats_.events["r_kept_positive"];
   if (step.q_projected) ++stats_.events["q_kept_positive"];
   return true;
+}
+
+namespace {
+
+// uwb-ekf's parameters from the adaptive filter's (the EKF-only ones at uwb-ekf's defaults).
+UwbEkfParams ekfParams(const UwbAkfParams& p) {
+  UwbEkfParams e;
+  e.front = p.kf.front;
+  e.epoch_window = p.kf.epoch_window;
+  e.accel_psd = p.kf.accel_psd;
+  e.velocity_tau = p.kf.velocity_tau;
+  e.init_residual = p.kf.init_residual;
+  return e;
+}
+
+}  // namespace
+
+UwbAkfRanges::UwbAkfRanges(const UwbAkfParams& params, const EstimatorContext& context)
+    : UwbEkf(ekfParams(params), context), akf_(params) {}
+
+void UwbAkfRanges::onStart() { anchors_.clear(); }
+
+bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
+  // The process statistics are the constant-velocity model's over this interval: adapted range
+  // by range (q̂ the mean correction, Q̂ from K e e^T K^T + P - F P F^T), they drifted on the
+  // demo, where each range corrects one direction only (uwb-akf 8.1 m, uwb-iakf 1036 m).
+  Eigen::Matrix4d f;
+  constantVelocityModel(std::max(0.0, dt(r.measurement.t)), params_.accel_psd, f, process_.Q,
+                        params_.velocity_tau);
+  const auto pred = kalman::sageHusaPredict<4>(x_, p_, process_, f);
+  t_ = std::max(t_, r.measurement.t);
+  Eigen::Matrix<double, 1, 4> hj;
+  const double predicted = rangeModel(r, &hj);
+  auto [it, fresh] = anchors_.try_emplace(r.measurement.anchor_id);
+  auto& anchor = it->second;
+  if (fresh) anchor.R(0, 0) = params_.front.sigmaValue() * params_.front.sigmaValue();
+  const double innovation = r.measurement.range - predicted;
+  // uwb-ekf's gate on the innovation less the anchor's bias, against the adaptive S: a gated
+  // range leaves the statistics alone (an NLOS burst would otherwise become the anchor's noise).
+  const double e = innovation - anchor.r(0);
+  const double s = (hj * p_ * hj.transpose())(0, 0) + anchor.R(0, 0);
+  if (e * e > params_.gate * s) {
+    countRejection(uwb::RejectReason::kInnovation, r.measurement.anchor_id);
+    return false;
+  }
+  const auto out = kalman::sageHusaUpdate<4, 1>(x_, p_, pred, nullptr, anchor,
+                                                Eigen::Matrix<double, 1, 1>(innovation), hj,
+                                                akf_.forgetting, akf_.gamma, akf_.r_floor);
+  if (out.diverged) ++stats_.events["divergence_inflated"];
+  if (out.r_projected) ++stats_.events["r_kept_positive"];
+  return true;
+}
+
+std::unique_ptr<Estimator> makeUwbAkf(const UwbAkfParams& params, const EstimatorContext& context) {
+  if (params.mode == AkfMode::kRanges) return std::make_unique<UwbAkfRanges>(params, context);
+  return std::make_unique<UwbAkf>(params, context);
 }
 
 }  // namespace uwbloc::loc

@@ -26,16 +26,12 @@ void UwbEkf::predict(double t) {
   t_ = t;
 }
 
-kalman::Innovation<1> UwbEkf::innovate(const AcceptedRange& r,
-                                       Eigen::Matrix<double, 1, 4>* hj) const {
-  // The measured 3D distance (PF-IBAS paper eq. (3)-(4) before the height projection):
-  // h(x) = || (x, y, z_tag) - anchor ||, H = dh/dx = [dx/h, dy/h, 0, 0].
+double UwbEkf::rangeModel(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const {
   const Eigen::Vector3d tag(x_(0), x_(1), r.measurement.tag_on_robot.z());
   const Eigen::Vector3d diff = tag - r.anchor;
   const double h = std::max(diff.norm(), 1e-6);
   *hj << diff.x() / h, diff.y() / h, 0.0, 0.0;
-  return kalman::innovate<4, 1>(p_, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), *hj,
-                                rangeNoise());
+  return h;
 }
 
 PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
@@ -71,6 +67,7 @@ bool UwbEkf::initialise(const AcceptedRange& r) {
   quarantine_.clear();
   initialised_ = true;
   gated_in_a_row_ = 0;
+  onStart();
   return true;
 }
 
@@ -83,29 +80,7 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
     return output(accepted->measurement.tag_on_robot);
   }
 
-  predict(accepted->measurement.t);
-  Eigen::Matrix<double, 1, 4> hj;
-  const int id = accepted->measurement.anchor_id;
-  // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
-  const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigmaValue());
-  const auto inn = innovate(*accepted, &hj);
-  const double innovation = inn.y(0);
-  const bool in_gate = kalman::inGate(inn, uwb::ChiSquareGate(params_.gate));
-  auto q = quarantine_.find(id);
-  bool used = false;
-  if (!in_gate) {
-    countRejection(uwb::RejectReason::kInnovation, id);
-    quarantine_[id] = 0;
-  } else if (q != quarantine_.end() && std::abs(innovation) > tolerance) {
-    q->second = 0;
-    countRejection("quarantine", id);
-  } else if (q == quarantine_.end() || ++q->second >= params_.readmit) {
-    if (q != quarantine_.end()) quarantine_.erase(q);
-    kalman::josephUpdate<4, 1>(x_, p_, inn, hj, rangeNoise());
-    used = true;
-  } else {
-    countRejection("quarantine", id);
-  }
+  const bool used = updateWithRange(*accepted);
   // Every anchor disagreeing with the state for a while means the filter is lost.
   gated_in_a_row_ = used ? 0 : gated_in_a_row_ + 1;
   if (gated_in_a_row_ >= params_.max_gated) {
@@ -115,6 +90,37 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
   }
   heading_.update(x_.tail<2>());
   return output(accepted->measurement.tag_on_robot);
+}
+
+bool UwbEkf::updateWithRange(const AcceptedRange& r) {
+  predict(r.measurement.t);
+  Eigen::Matrix<double, 1, 4> hj;
+  const int id = r.measurement.anchor_id;
+  // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
+  const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigmaValue());
+  const double predicted = rangeModel(r, &hj);
+  const auto inn = kalman::innovate<4, 1>(
+      p_, Eigen::Matrix<double, 1, 1>(r.measurement.range - predicted), hj, rangeNoise());
+  const double innovation = inn.y(0);
+  const bool in_gate = kalman::inGate(inn, uwb::ChiSquareGate(params_.gate));
+  auto q = quarantine_.find(id);
+  if (!in_gate) {
+    countRejection(uwb::RejectReason::kInnovation, id);
+    quarantine_[id] = 0;
+    return false;
+  }
+  if (q != quarantine_.end() && std::abs(innovation) > tolerance) {
+    q->second = 0;
+    countRejection("quarantine", id);
+    return false;
+  }
+  if (q == quarantine_.end() || ++q->second >= params_.readmit) {
+    if (q != quarantine_.end()) quarantine_.erase(q);
+    kalman::josephUpdate<4, 1>(x_, p_, inn, hj, rangeNoise());
+    return true;
+  }
+  countRejection("quarantine", id);
+  return false;
 }
 
 }  // namespace uwbloc::loc

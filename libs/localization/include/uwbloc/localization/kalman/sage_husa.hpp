@@ -28,12 +28,18 @@
 
 namespace uwbloc::loc::kalman {
 
-/// The estimated noise statistics: process noise mean q̂ and covariance Q̂, measurement noise
-/// mean r̂ and covariance R̂, and the step count k of d_k.
-template <int N, int M>
-struct SageHusaNoise {
+/// The estimated process noise: mean q̂, covariance Q̂, and the step count k of its d_k.
+template <int N>
+struct SageHusaProcess {
   Vec<N> q = Vec<N>::Zero();
   Mat<N, N> Q = Mat<N, N>::Identity();
+  long k = 0;
+};
+
+/// The estimated measurement noise: mean r̂, covariance R̂, and the step count k of its d_k (a
+/// tightly coupled filter keeps one per anchor).
+template <int M>
+struct SageHusaMeasurement {
   Vec<M> r = Vec<M>::Zero();
   Mat<M, M> R = Mat<M, M>::Identity();
   long k = 0;
@@ -46,11 +52,11 @@ inline double sageHusaWeight(double b, long k) {
 
 /// What one adaptive step did.
 struct SageHusaStep {
-  double d = 0.0;            ///< the weight d_k used
+  double d = 0.0;            ///< the weight d_k of the measurement statistics
   bool diverged = false;     ///< eq. (20) held (IAKF only)
   double inflation = 1.0;    ///< C_k of eq. (22) (1 when not diverged)
   bool r_projected = false;  ///< R̂ had an eigenvalue below r_floor^2
-  bool q_projected = false;  ///< Q̂ had a negative eigenvalue
+  bool q_projected = false;  ///< Q̂ had an eigenvalue below 1e-12
 };
 
 /// The symmetric part of `a` with its eigenvalues raised to at least `floor`; true when any was.
@@ -65,52 +71,82 @@ bool projectEigenvalues(Mat<K, K>& a, double floor) {
   return below;
 }
 
-/// One step of eq. (15)-(16) (AKF), or of eq. (15)-(23) with the divergence test when
-/// `gamma` > 0 (IAKF): predict with Φ = `f`, update with the measurement `z` = H x + v, then
-/// re-estimate the noise statistics. The covariance update is the toolkit's Joseph form.
+/// Eq. (15) lines 1-2, kept for the update: the state before, Φ P Φ^T, and Φ.
+template <int N>
+struct SageHusaPrediction {
+  Vec<N> x_prev;
+  Mat<N, N> fpf;
+  Mat<N, N> f;
+};
+
+/// Predicts with Φ = `f`: x <- Φ x + q̂, P <- Φ P Φ^T + Q̂.
+template <int N>
+SageHusaPrediction<N> sageHusaPredict(Vec<N>& x, Mat<N, N>& p, const SageHusaProcess<N>& process,
+                                      const Mat<N, N>& f) {
+  SageHusaPrediction<N> pred{x, f * p * f.transpose(), f};
+  x = f * x + process.q;
+  p = pred.fpf + process.Q;
+  return pred;
+}
+
+/// The update after sageHusaPredict, for a measurement whose innovation against the predicted
+/// state is `innovation` (z - h(x_{k/k-1}); for a linear model z - H x_{k/k-1}) with Jacobian
+/// `h`: eq. (15) lines 3-6 (the toolkit's Joseph form) with the divergence test and inflation of
+/// eq. (17)-(23) when `gamma` > 0, then the statistics of eq. (16). `process` is updated only
+/// when given (a tightly coupled filter updates it once per range, like the measurement's).
 template <int N, int M>
-SageHusaStep sageHusaStep(Vec<N>& x, Mat<N, N>& p, SageHusaNoise<N, M>& noise, const Mat<N, N>& f,
-                          const Vec<M>& z, const Mat<M, N>& h, double b, double gamma,
-                          double r_floor) {
+SageHusaStep sageHusaUpdate(Vec<N>& x, Mat<N, N>& p, const SageHusaPrediction<N>& pred,
+                            SageHusaProcess<N>* process, SageHusaMeasurement<M>& meas,
+                            const Vec<M>& innovation, const Mat<M, N>& h, double b, double gamma,
+                            double r_floor) {
   SageHusaStep out;
-  const Vec<N> x_prev = x;
-  const Mat<N, N> fpf = f * p * f.transpose();
-  // Eq. (15) lines 1-2.
-  const Vec<N> x_pred = f * x_prev + noise.q;
-  Mat<N, N> p_pred = fpf + noise.Q;
   // Line 4: the innovation, less the measurement noise mean.
-  const Vec<M> innovation = z - h * x_pred;
-  const Vec<M> e = innovation - noise.r;
+  const Vec<M> e = innovation - meas.r;
   const double ete = e.squaredNorm();
   if (gamma > 0.0) {
     // Eq. (20): diverging when the innovation exceeds gamma times what the filter expects.
-    const Mat<M, M> expected = h * p_pred * h.transpose() + noise.R;
+    const Mat<M, M> expected = h * p * h.transpose() + meas.R;
     if (ete > gamma * expected.trace()) {
       out.diverged = true;
-      const double denom = (h * fpf * h.transpose()).trace();
+      const Mat<N, N> q_now = p - pred.fpf;  // Q̂ of this prediction
+      const double denom = (h * pred.fpf * h.transpose()).trace();
       const double c =
-          denom > 0.0 ? (ete - (h * noise.Q * h.transpose() + noise.R).trace()) / denom : 1.0;
-      out.inflation = std::max(1.0, c);        // eq. (22), inflating only
-      p_pred = out.inflation * fpf + noise.Q;  // eq. (21) / (23)
+          denom > 0.0 ? (ete - (h * q_now * h.transpose() + meas.R).trace()) / denom : 1.0;
+      out.inflation = std::max(1.0, c);      // eq. (22), inflating only
+      p = out.inflation * pred.fpf + q_now;  // eq. (21) / (23)
     }
   }
+  const Mat<N, N> p_pred = p;
   // Lines 3, 5, 6: gain, state, covariance (the toolkit's Joseph form).
-  x = x_pred;
-  p = p_pred;
-  const auto inn = innovate<N, M>(p, e, h, noise.R);
+  const auto inn = innovate<N, M>(p, e, h, meas.R);
   const Mat<N, M> k = p * h.transpose() * inn.s.inverse();
-  josephUpdate<N, M>(x, p, inn, h, noise.R);
+  josephUpdate<N, M>(x, p, inn, h, meas.R);
   // Eq. (16) with d_k of eq. (24).
-  out.d = sageHusaWeight(b, noise.k);
+  out.d = sageHusaWeight(b, meas.k);
   const double d = out.d;
-  noise.q = (1.0 - d) * noise.q + d * (x - f * x_prev);
-  noise.Q = (1.0 - d) * noise.Q + d * (k * e * e.transpose() * k.transpose() + p - fpf);
-  noise.r = (1.0 - d) * noise.r + d * innovation;
-  noise.R = (1.0 - d) * noise.R + d * (e * e.transpose() - h * p_pred * h.transpose());
-  out.q_projected = projectEigenvalues<N>(noise.Q, 1e-12);
-  out.r_projected = projectEigenvalues<M>(noise.R, r_floor * r_floor);
-  ++noise.k;
+  meas.r = (1.0 - d) * meas.r + d * innovation;
+  meas.R = (1.0 - d) * meas.R + d * (e * e.transpose() - h * p_pred * h.transpose());
+  out.r_projected = projectEigenvalues<M>(meas.R, r_floor * r_floor);
+  ++meas.k;
+  if (process) {
+    const double dq = sageHusaWeight(b, process->k);
+    process->q = (1.0 - dq) * process->q + dq * (x - pred.f * pred.x_prev);
+    process->Q =
+        (1.0 - dq) * process->Q + dq * (k * e * e.transpose() * k.transpose() + p - pred.fpf);
+    out.q_projected = projectEigenvalues<N>(process->Q, 1e-12);
+    ++process->k;
+  }
   return out;
+}
+
+/// One loosely coupled step: sageHusaPredict, then sageHusaUpdate with z = H x + v.
+template <int N, int M>
+SageHusaStep sageHusaStep(Vec<N>& x, Mat<N, N>& p, SageHusaProcess<N>& process,
+                          SageHusaMeasurement<M>& meas, const Mat<N, N>& f, const Vec<M>& z,
+                          const Mat<M, N>& h, double b, double gamma, double r_floor) {
+  const auto pred = sageHusaPredict<N>(x, p, process, f);
+  const Vec<M> innovation = z - h * x;
+  return sageHusaUpdate<N, M>(x, p, pred, &process, meas, innovation, h, b, gamma, r_floor);
 }
 
 }  // namespace uwbloc::loc::kalman

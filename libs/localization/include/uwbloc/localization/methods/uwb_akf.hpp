@@ -4,16 +4,32 @@
 // on line by the Sage-Husa step (kalman/sage_husa.hpp: eq. 15-16 and 24) and, for uwb-iakf, the
 // divergence test and covariance inflation of eq. (17)-(23).
 //
-// The statistics start from uwb-kf's models: Q̂_0 the constant-velocity process noise over the
-// data's first epoch interval, R̂_0 the first fix's covariance, q̂_0 = r̂_0 = 0.
+// mode=fix (the default) is that set-up. mode=ranges couples them tightly instead: uwb-ekf's
+// per-range EKF (same start, same constant-velocity state) with the Sage-Husa step on each
+// range's innovation, one measurement statistic (r̂, R̂: the anchor's range bias and variance)
+// per anchor; the process noise stays the constant-velocity model's (adapted range by range it
+// drifted: see uwb_akf.cpp).
+//
+// The statistics start from uwb-kf's and uwb-ekf's models: Q̂_0 the constant-velocity process
+// noise over the data's first interval, R̂_0 the first fix's covariance (fix) or sigma^2 (ranges),
+// q̂_0 = r̂_0 = 0. Neither mode gates: the paper's filters adapt to what a gate would drop.
 #pragma once
 
+#include <map>
+
 #include "uwbloc/localization/kalman/sage_husa.hpp"
+#include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
 
 namespace uwbloc::loc {
 
+enum class AkfMode { kFix, kRanges };
+constexpr std::array<EnumName<AkfMode>, 2> enumNames(AkfMode) {
+  return {{{AkfMode::kFix, "fix"}, {AkfMode::kRanges, "ranges"}}};
+}
+
 struct UwbAkfParams {
+  AkfMode mode = AkfMode::kFix;
   UwbKfParams kf;
   double forgetting = 0.97;  ///< b of eq. (24), in [0.95, 0.99] in the paper
   double gamma = 0.0;        ///< eq. (17)'s bound; 0 = no divergence test (AKF); uwb-iakf: 1
@@ -21,6 +37,7 @@ struct UwbAkfParams {
 
   template <class V>
   void visit(V&& v) {
+    v("mode", mode, "fix: on the multilateration fix (the paper); ranges: on each range (tight)");
     kf.visit(v);
     v("b", forgetting, "forgetting factor of the noise statistics, d_k = (1-b)/(1-b^(k+1))");
     v("gamma", gamma,
@@ -39,8 +56,27 @@ class UwbAkf : public UwbKf {
 
  private:
   UwbAkfParams akf_;
-  kalman::SageHusaNoise<4, 2> noise_;
+  kalman::SageHusaProcess<4> process_;
+  kalman::SageHusaMeasurement<2> measurement_;
   bool noise_started_ = false;
 };
+
+/// mode=ranges.
+class UwbAkfRanges : public UwbEkf {
+ public:
+  UwbAkfRanges(const UwbAkfParams& params, const EstimatorContext& context);
+
+ protected:
+  void onStart() override;
+  bool updateWithRange(const AcceptedRange& r) override;
+
+ private:
+  UwbAkfParams akf_;
+  kalman::SageHusaProcess<4> process_;  ///< the constant-velocity model's, never adapted
+  std::map<int, kalman::SageHusaMeasurement<1>> anchors_;
+};
+
+/// The estimator for `params.mode`.
+std::unique_ptr<Estimator> makeUwbAkf(const UwbAkfParams& params, const EstimatorContext& context);
 
 }  // namespace uwbloc::loc

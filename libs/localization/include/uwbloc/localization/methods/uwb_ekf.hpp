@@ -64,27 +64,35 @@ class UwbEkf : public UwbEstimator {
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
   void reset() override;
+  /// Called when the state (re)starts (the adaptive filter restarts its noise statistics).
+  virtual void onStart() {}
+  /// Predicts to the range's time and updates with it (gate, quarantine, Joseph update); false
+  /// when the range was not used.
+  virtual bool updateWithRange(const AcceptedRange& r);
+  /// The measured 3D distance h(x) from the tag at (x, y, tag height) to the anchor, and its
+  /// Jacobian [dx/h, dy/h, 0, 0] (PF-IBAS paper eq. (3)-(4) before the height projection).
+  double rangeModel(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const;
+  double dt(double t) const { return t - t_; }
+
+  UwbEkfParams params_;
+  double t_ = 0.0;
+  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
 
  private:
   void predict(double t);
-  /// Steps (1)-(3) of the update for one range, and its Jacobian.
-  kalman::Innovation<1> innovate(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const;
   Eigen::Matrix<double, 1, 1> rangeNoise() const {
     return Eigen::Matrix<double, 1, 1>(params_.front.sigmaValue() * params_.front.sigmaValue());
   }
   bool initialise(const AcceptedRange& r);
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
-  UwbEkfParams params_;
   std::optional<Eigen::Vector3d> start_pose_;  ///< used once, for the first start
   EpochBuffer init_epochs_;
   HeadingFromMotion heading_;
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
   std::map<int, int> quarantine_;  ///< anchor -> in-gate ranges seen since it was gated
-  double t_ = 0.0;
-  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
-  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
 };
 
 }  // namespace uwbloc::loc
