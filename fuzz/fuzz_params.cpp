@@ -1,5 +1,5 @@
-// libFuzzer target: method specs and --set values ("name:k=v,k=v") through the registry, as the
-// CLI builds every method.
+// libFuzzer target: method specs ("name:k=v,k=v") through the registry, as the CLI builds every
+// method, and the same text as a --set override ("method.key=value").
 #include <cstdint>
 #include <cstdlib>
 #include <string>
@@ -11,6 +11,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   uwbloc::loc::EstimatorContext ctx;
   ctx.anchors = {{1, {0, 0, 2}}, {2, {6, 0, 2}}, {3, {0, 6, 2}}};
   ctx.initial_pose = Eigen::Vector3d(1, 1, 0);
+  try {
+    const auto o = uwbloc::loc::SetOverride::parse(text, uwbloc::loc::Registry::builtin());
+    uwbloc::loc::ParamSet set;
+    set.set(o.key, o.value);
+    uwbloc::loc::Registry::builtin().create(o.method, ctx, set);
+  } catch (const uwbloc::loc::ParamError&) {
+  } catch (const std::invalid_argument&) {
+  }
   try {
     auto est = uwbloc::loc::Registry::builtin().create(text, ctx);
     // A legal but large particle count (up to 1e6) takes seconds per range under the

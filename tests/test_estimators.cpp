@@ -400,3 +400,21 @@ TEST(AdaptiveKalman, TightlyCoupledModeRunsOnTheRoom) {
     EXPECT_EQ(run.statistics.rejected.count("non_finite_estimate"), 0u) << m;
   }
 }
+
+// The --set parser: "method.key=value" split at the last dot before the '='; malformed text and
+// unknown methods are errors naming the token.
+TEST(Registry, SetOverridesParseAndRefuseWhatIsNoOverride) {
+  const auto& reg = loc::Registry::builtin();
+  const auto o = loc::SetOverride::parse("pf-ibas+graph.front=pf-sir:n=50", reg);
+  EXPECT_EQ(o.method, "pf-ibas+graph");
+  EXPECT_EQ(o.key, "front");
+  EXPECT_EQ(o.value, "pf-sir:n=50");
+  const auto v = loc::SetOverride::parse("uwb-kf.q=0.5", reg);
+  EXPECT_EQ(v.method, "uwb-kf");
+  EXPECT_EQ(v.value, "0.5");
+  for (const std::string bad : {"uwb-kf", "uwb-kf.q", ".q=1", "uwb-kf.=1", "q=1"})
+    test::expectErrorMentions<loc::ParamError>([&] { loc::SetOverride::parse(bad, reg); },
+                                               {"method.key=value"});
+  test::expectErrorMentions<loc::ParamError>([&] { loc::SetOverride::parse("uwb-kff.q=1", reg); },
+                                             {"uwb-kff", "not a method", "uwb-kf"});
+}

@@ -56,15 +56,8 @@ std::map<std::string, loc::ParamSet> methodOverrides(const RunOptions& opt) {
     }
   }
   for (const auto& s : opt.sets) {
-    const auto eq = s.find('=');
-    const auto dot = s.rfind('.', eq);
-    if (eq == std::string::npos || dot == std::string::npos)
-      throw loc::ParamError("--set expects method.key=value, got " + loc::quoteToken(s));
-    const std::string method = s.substr(0, dot);
-    if (!registry.find(method))
-      throw loc::ParamError("--set " + loc::quoteToken(s) + ": " + loc::quoteToken(method) +
-                            " is not a method (known: " + names + ")");
-    out[method].set(s.substr(dot + 1, eq - dot - 1), s.substr(eq + 1));
+    const auto o = loc::SetOverride::parse(s, registry);
+    out[o.method].set(o.key, o.value);
   }
   return out;
 }

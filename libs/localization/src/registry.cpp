@@ -125,4 +125,19 @@ std::unique_ptr<Estimator> Registry::create(const std::string& spec,
   return info->make(merged, context);
 }
 
+SetOverride SetOverride::parse(const std::string& text, const Registry& registry) {
+  const auto eq = text.find('=');
+  const auto dot = eq == std::string::npos ? std::string::npos : text.rfind('.', eq);
+  if (eq == std::string::npos || dot == std::string::npos || dot == 0 || dot + 1 == eq)
+    throw ParamError("--set expects method.key=value, got " + quoteToken(text));
+  SetOverride out{text.substr(0, dot), text.substr(dot + 1, eq - dot - 1), text.substr(eq + 1)};
+  if (!registry.find(out.method)) {
+    std::string names;
+    for (const auto& n : registry.names()) names += (names.empty() ? "" : ", ") + n;
+    throw ParamError("--set " + quoteToken(text) + ": " + quoteToken(out.method) +
+                     " is not a method (known: " + names + ")");
+  }
+  return out;
+}
+
 }  // namespace uwbloc::loc

@@ -49,6 +49,15 @@ class Registry {
   std::vector<MethodInfo> methods_;
 };
 
+/// One `--set` override, "method.key=value" (the method name may hold dots; the last dot before
+/// the '=' ends it).
+struct SetOverride {
+  std::string method, key, value;
+  /// Splits the text; throws ParamError for a malformed one, or one whose method is not in
+  /// `registry` (the message lists the known methods).
+  static SetOverride parse(const std::string& text, const Registry& registry);
+};
+
 /// Registration helper: a method whose estimator is constructed as Est(Params, context).
 template <class Est, class Params>
 MethodInfo makeMethod(
