@@ -1,5 +1,7 @@
 #include "uwbloc/localization/methods/uwb_akf.hpp"
 
+#include <cmath>
+
 #include "uwbloc/localization/motion_models.hpp"
 
 namespace uwbloc::loc {
@@ -80,6 +82,9 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
                                                 akf_.forgetting, akf_.gamma, akf_.r_floor);
   if (out.diverged) ++stats_.events["divergence_inflated"];
   if (out.r_projected) ++stats_.events["r_kept_positive"];
+  // The anchor's range model as the filter now sees it: r̂ its bias, sqrt(R̂) its std.
+  stats_.estimated_noise[r.measurement.anchor_id] = {anchor.r(0), std::sqrt(anchor.R(0, 0)),
+                                                     anchor.k};
   return true;
 }
 
