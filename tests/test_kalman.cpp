@@ -6,6 +6,7 @@
 
 #include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/kalman/sage_husa.hpp"
+#include "uwbloc/localization/motion_models.hpp"
 
 using namespace uwbloc;
 using namespace uwbloc::loc::kalman;
@@ -137,4 +138,40 @@ TEST(SageHusa, TheEstimatedRStaysPositiveDefinite) {
   const auto step = c.step(0.0, 0.0, 0.1);
   EXPECT_TRUE(step.r_projected);
   EXPECT_NEAR(c.meas.R(0, 0), 0.01, 1e-12);
+}
+
+// The CTRV model (mobile-node paper §2.3, standard form): one step by hand, and its Jacobian
+// against central differences, turning and (the omega -> 0 branch) straight.
+TEST(Ctrv, OneStepByHandAndTheJacobianAgainstNumbers) {
+  using S = Eigen::Matrix<double, 5, 1>;
+  // v = 1, theta = 0, omega = pi/2 over dt = 1: a quarter circle of radius 2/pi.
+  const S turned = loc::ctrvPredict((S() << 0, 0, 1, 0, M_PI / 2).finished(), 1.0);
+  EXPECT_NEAR(turned(0), 2.0 / M_PI, 1e-12);
+  EXPECT_NEAR(turned(1), 2.0 / M_PI, 1e-12);
+  EXPECT_NEAR(turned(3), M_PI / 2, 1e-12);
+  const S straight = loc::ctrvPredict((S() << 1, 2, 2, M_PI / 2, 0).finished(), 0.5);
+  EXPECT_NEAR(straight(0), 1.0, 1e-12);
+  EXPECT_NEAR(straight(1), 3.0, 1e-12);
+  for (const S s0 :
+       {(S() << 1, -2, 1.5, 0.7, 0.4).finished(), (S() << 1, -2, 1.5, 0.7, 0.0).finished()}) {
+    Eigen::Matrix<double, 5, 5> f;
+    loc::ctrvPredict(s0, 0.3, &f);
+    for (int j = 0; j < 5; ++j) {
+      // At omega = 0 the model switches branch below |omega| = 1e-6: differences step past it.
+      const double eps = (j == 4 && s0(4) == 0.0) ? 1e-4 : 1e-6;
+      S up = s0, down = s0;
+      up(j) += eps;
+      down(j) -= eps;
+      const S numeric = (loc::ctrvPredict(up, 0.3) - loc::ctrvPredict(down, 0.3)) / (2 * eps);
+      const double tol = 1e-7;
+      for (int i = 0; i < 5; ++i) EXPECT_NEAR(f(i, j), numeric(i), tol) << i << "," << j;
+    }
+  }
+  // The process noise: G diag(sa^2, sy^2) G^T, e.g. Q(2,2) = dt^2 sa^2, Q(4,4) = dt^2 sy^2.
+  Eigen::Matrix<double, 5, 5> f, q;
+  loc::ctrvPredict((S() << 0, 0, 1, 0, 0).finished(), 2.0, &f, &q, 0.5, 0.2);
+  EXPECT_NEAR(q(2, 2), 4.0 * 0.25, 1e-12);
+  EXPECT_NEAR(q(4, 4), 4.0 * 0.04, 1e-12);
+  EXPECT_NEAR(q(0, 2), 2.0 * 2.0 * 0.25, 1e-12);  // dt^2/2 * dt * sa^2
+  EXPECT_NEAR(q(1, 1), 0.0, 1e-12);
 }

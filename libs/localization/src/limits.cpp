@@ -46,6 +46,8 @@ const std::vector<ParamLimit>& paramLimits() {
       {"min_spread", 0, 1e3, false, "[m]"},
       {"q", 0, 1e6, true, "process noise density: negative would make P indefinite"},
       {"tau", 0, 1e6, false, "[s]"},
+      {"sigma_a", 0, 1e3, true, "[m/s^2]"},
+      {"sigma_yaw", 0, 1e3, true, "[rad/s^2]"},
       {"b", 0.5, 0.999, false, "forgetting factor: d_k = (1-b)/(1-b^(k+1)) needs b < 1"},
       {"gamma", 0, 1e6, false, "divergence bound (0: off)"},
       {"r_floor", 0, 100, true, "[m]: keeps the estimated R positive definite"},

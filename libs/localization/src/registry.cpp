@@ -4,6 +4,7 @@
 #include "uwbloc/localization/methods/multilateration_estimator.hpp"
 #include "uwbloc/localization/methods/odometry_estimator.hpp"
 #include "uwbloc/localization/methods/uwb_akf.hpp"
+#include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
 
@@ -57,6 +58,11 @@ Registry makeBuiltin() {
                         "divergence test and covariance inflation of eq. 17-23",
                         {"ranges"}, makeUwbAkf),
                     "gamma", "1"));
+  r.add(makeMethod<UwbCtrvEkf, UwbCtrvEkfParams>(
+      "uwb-ctrv-ekf",
+      "UWB only: the mobile-node paper's EKF, constant turn rate and velocity, on least-squares "
+      "fixes behind the increment-queue gate",
+      {"ranges"}));
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
       "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
       {"ranges"}));

@@ -19,6 +19,23 @@ void constantVelocityModel(double dt, double q, Eigen::Matrix4d& f, Eigen::Matri
 
 /// Heading of a UWB-only track, taken from the direction of motion. The tag track alone does
 /// not observe heading; this is what the lever-arm correction uses.
+/// The constant turn rate and velocity (CTRV) model over dt for the state s = [x y v theta omega]
+/// (the mobile-node paper, §2.3; its equations were lost in extraction, so the standard form of
+/// Schubert, Richter and Wanielik, "Comparison and evaluation of advanced motion models for
+/// vehicle tracking", FUSION 2008, is used):
+///   omega != 0: x += v/omega (sin(theta + omega dt) - sin theta),
+///               y += v/omega (cos theta - cos(theta + omega dt)),
+///   omega == 0: x += v dt cos theta, y += v dt sin theta;
+///   theta += omega dt; v and omega unchanged.
+/// `f`, when given, receives the Jacobian d s' / d s. `q`, when given, the process noise of a
+/// white longitudinal acceleration (std `sigma_a`) and yaw acceleration (std `sigma_yaw`) held
+/// over dt: Q = G diag(sigma_a^2, sigma_yaw^2) G^T, G = [[dt^2/2 cos, 0] [dt^2/2 sin, 0] [dt, 0]
+/// [0, dt^2/2] [0, dt]].
+Eigen::Matrix<double, 5, 1> ctrvPredict(const Eigen::Matrix<double, 5, 1>& s, double dt,
+                                        Eigen::Matrix<double, 5, 5>* f = nullptr,
+                                        Eigen::Matrix<double, 5, 5>* q = nullptr,
+                                        double sigma_a = 0.0, double sigma_yaw = 0.0);
+
 class HeadingFromMotion {
  public:
   explicit HeadingFromMotion(double min_speed = 0.05) : min_speed_(min_speed) {}
