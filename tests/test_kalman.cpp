@@ -152,7 +152,7 @@ TEST(Ctrv, OneStepByHandAndTheJacobianAgainstNumbers) {
   const S straight = loc::ctrvPredict((S() << 1, 2, 2, M_PI / 2, 0).finished(), 0.5);
   EXPECT_NEAR(straight(0), 1.0, 1e-12);
   EXPECT_NEAR(straight(1), 3.0, 1e-12);
-  for (const S s0 :
+  for (const S& s0 :
        {(S() << 1, -2, 1.5, 0.7, 0.4).finished(), (S() << 1, -2, 1.5, 0.7, 0.0).finished()}) {
     Eigen::Matrix<double, 5, 5> f;
     loc::ctrvPredict(s0, 0.3, &f);
