@@ -39,11 +39,11 @@ namespace {
 // uwb-ekf's parameters from the adaptive filter's (the EKF-only ones at uwb-ekf's defaults).
 UwbEkfParams ekfParams(const UwbAkfParams& p) {
   UwbEkfParams e;
-  e.front = p.kf.front;
-  e.epoch_window = p.kf.epoch_window;
+  e.front = p.kf.fix.front;
+  e.epoch_window = p.kf.fix.epoch_window;
   e.accel_psd = p.kf.accel_psd;
   e.velocity_tau = p.kf.velocity_tau;
-  e.init_residual = p.kf.init_residual;
+  e.init_residual = p.kf.fix.init_residual;
   return e;
 }
 

@@ -9,49 +9,42 @@
 #include <Eigen/Core>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/methods/fix_filter.hpp"
 #include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
 
 namespace uwbloc::loc {
 
 struct UwbCtrvEkfParams {
-  RangeFrontEndParams front;
-  AutoDouble epoch_window;  ///< ranges within this span form one epoch [s]; auto: the data's rate
-  MultilaterationSolver solver = MultilaterationSolver::kLinearLS;  ///< §2.2: least squares
-  double sigma_a = 0.5;        ///< longitudinal acceleration std [m/s^2]
-  double sigma_yaw = 0.5;      ///< yaw acceleration std [rad/s^2]
-  double gate = 13.8;          ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
-  int max_gated = 5;           ///< consecutive gated fixes before re-initialising
-  double init_residual = 0.5;  ///< largest residual norm of a fix used to (re)initialise [m]
+  /// The fix (least squares, §2.2), the gate and the restart (fix_filter.hpp).
+  FixFilterParams fix = [] {
+    FixFilterParams f;
+    f.solver = MultilaterationSolver::kLinearLS;
+    return f;
+  }();
+  double sigma_a = 0.5;    ///< longitudinal acceleration std [m/s^2]
+  double sigma_yaw = 0.5;  ///< yaw acceleration std [rad/s^2]
 
   template <class V>
   void visit(V&& v) {
-    front.visit(v);
-    v("window", epoch_window,
-      "epoch window [s], or auto (one round of ranges from the data's rate)");
-    v("solver", solver, "multilateration solver for the measurement: ls (the paper), gn, chan");
+    fix.visit(v);
     v("sigma_a", sigma_a, "longitudinal acceleration std [m/s^2]");
     v("sigma_yaw", sigma_yaw, "yaw acceleration std [rad/s^2]");
-    v("gate", gate, "chi-square gate on the position innovation (2 dof)");
-    v("max_gated", max_gated, "consecutive gated fixes before re-initialising");
-    v("init_residual", init_residual, "largest residual norm of an initialising fix [m]");
   }
 };
 
-class UwbCtrvEkf : public EpochUwbEstimator {
+class UwbCtrvEkf : public FixFilter {
  public:
   UwbCtrvEkf(const UwbCtrvEkfParams& params, const EstimatorContext& context);
 
  protected:
-  std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) override;
-  void reset() override { initialised_ = false; }
+  void start(const uwb::Fix& fix) override;
+  bool predictAndUpdate(const uwb::Fix& fix, double dt) override;
+  PoseEstimate pose(double t, const Eigen::Vector3d& tag_on_robot) override;
 
  private:
   UwbCtrvEkfParams params_;
   std::optional<double> start_heading_;
-  bool initialised_ = false;
-  int gated_in_a_row_ = 0;
-  double t_ = 0.0;
   Eigen::Matrix<double, 5, 1> x_ = Eigen::Matrix<double, 5, 1>::Zero();
   Eigen::Matrix<double, 5, 5> p_ = Eigen::Matrix<double, 5, 5>::Identity();
 };
