@@ -43,15 +43,13 @@ std::vector<std::string> splitMethods(const std::string& list) {
 // would otherwise be ignored without a word, so it is an error.
 std::map<std::string, loc::ParamSet> methodOverrides(const RunOptions& opt) {
   const auto& registry = loc::Registry::builtin();
-  std::string names;
-  for (const auto& n : registry.names()) names += (names.empty() ? "" : ", ") + n;
   std::map<std::string, loc::ParamSet> out;
   if (!opt.config.empty()) {
     const auto ini = data::IniFile::load(opt.config);
     for (const auto& section : ini.sections()) {
       if (!registry.find(section))
         throw loc::ParamError(opt.config + ": section [" + section +
-                              "] is not a method (known: " + names + ")");
+                              "] is not a method (known: " + registry.knownNames() + ")");
       for (const auto& key : ini.keys(section)) out[section].set(key, *ini.get(section, key));
     }
   }

@@ -86,20 +86,14 @@ ScopedAllocationCap::ScopedAllocationCap(std::size_t bytes) noexcept
   t_refused = 0;
 }
 
-ScopedAllocationCap::~ScopedAllocationCap() { release(); }
-
-void ScopedAllocationCap::release() noexcept {
-  if (!active_) return;
-  used_ = t_used;
-  refused_ = t_refused;
+ScopedAllocationCap::~ScopedAllocationCap() {
   t_cap = previous_cap_;
   t_used = previous_used_;
   t_refused = previous_refused_;
-  active_ = false;
 }
 
-std::size_t ScopedAllocationCap::currentUsed() noexcept { return t_used; }
-std::size_t ScopedAllocationCap::currentRefused() noexcept { return t_refused; }
+std::size_t ScopedAllocationCap::used() const noexcept { return t_used; }
+std::size_t ScopedAllocationCap::refused() const noexcept { return t_refused; }
 
 bool allocationGuardActive() {
   static const bool active = [] {

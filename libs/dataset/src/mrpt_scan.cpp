@@ -5,17 +5,11 @@
 
 namespace uwbloc::data {
 
-namespace {
-
-// MRPT deserialises a bool as the byte it finds; a corrupt rawlog may hold another value than 0
-// or 1, which is undefined to load as bool: the byte is read as what it is.
 bool byteAsBool(const bool& flag) {
   unsigned char byte = 0;
   std::memcpy(&byte, &flag, 1);
   return byte != 0;
 }
-
-}  // namespace
 
 loc::LaserScan fromMrpt(const mrpt::obs::CObservation2DRangeScan& obs, double t) {
   loc::LaserScan scan;

@@ -12,7 +12,6 @@
 #include <mrpt/serialization/CArchive.h>
 
 #include <algorithm>
-#include <cstring>
 #include <filesystem>
 #include <sstream>
 
@@ -39,15 +38,11 @@ int tagIdFromLabel(const std::string& label) {
   }
 }
 
-// CObservationIMU::has() reads the deserialised flag as a bool, which is undefined for a byte
-// other than 0 or 1 (a corrupt rawlog); the byte is read as what it is (and get(), which reads
-// it too, is not used).
+// CObservationIMU::has() and get() read the deserialised flag as a bool (undefined for a byte
+// other than 0 or 1, as a corrupt rawlog may hold): neither is used.
 bool imuHas(const mrpt::obs::CObservationIMU& imu, mrpt::obs::TIMUDataIndex idx) {
   const auto i = static_cast<size_t>(idx);
-  if (i >= imu.dataIsPresent.size()) return false;
-  unsigned char flag = 0;
-  std::memcpy(&flag, &imu.dataIsPresent[i], 1);
-  return flag != 0;
+  return i < imu.dataIsPresent.size() && byteAsBool(imu.dataIsPresent[i]);
 }
 
 double toSeconds(mrpt::Clock::time_point t) {
@@ -230,21 +225,30 @@ Recording readRawlogInProcess(const std::string& path, RawlogProgress* progress)
       progress->objects = static_cast<uint64_t>(objects);
       progress->position = position;
     }
-    ScopedAllocationCap cap(objectAllocationCap(length, position));
+    // The cap covers MRPT's reading only; what it refused is kept for the message, which is
+    // composed after the cap has ended.
+    size_t claimed = 0;
+    auto readCapped = [&] {
+      const ScopedAllocationCap cap(objectAllocationCap(length, position));
+      try {
+        return archive.ReadObject();
+      } catch (...) {
+        if (cap.refused() != 0) claimed = cap.used() + cap.refused();
+        throw;
+      }
+    };
     try {
-      obj = archive.ReadObject();
+      obj = readCapped();
     } catch (const mrpt::serialization::CExceptionEOF&) {
-      cap.release();
       // A clean end of file: nothing of a next object was read.
       if (in.checkEOF()) break;
       throwInputError(path, 0, "truncated rawlog after " + std::to_string(objects) + " objects");
     } catch (const std::exception& e) {
-      // MRPT wraps what a nested object throws: the cap's refusal is read from the cap itself.
-      cap.release();
+      // MRPT wraps what a nested object throws: the cap's refusal is read from `claimed`.
       const std::string cause =
-          cap.refused() != 0
-              ? "it claims " + formatBytes(static_cast<double>(cap.used() + cap.refused())) +
-                    ", more than the " + formatBytes(static_cast<double>(length - position)) +
+          claimed != 0
+              ? "it claims " + formatBytes(static_cast<double>(claimed)) + ", more than the " +
+                    formatBytes(static_cast<double>(length - position)) +
                     " left in the stream can describe (a corrupt count or length)"
               : mrptCause(e.what());
       throwInputError(path, 0,
@@ -252,7 +256,6 @@ Recording readRawlogInProcess(const std::string& path, RawlogProgress* progress)
                           " (at byte " + std::to_string(position) +
                           " of the uncompressed stream) cannot be read: " + cause);
     }
-    cap.release();
     ++objects;
     if (!obj) continue;
     try {

@@ -60,7 +60,8 @@ class Writer {
 
 class Reader {
  public:
-  explicit Reader(const std::string& bytes) : bytes_(bytes) {}
+  /// Reads `bytes` from offset `at` (the answer's records follow its one-letter tag).
+  Reader(const std::string& bytes, size_t at) : bytes_(bytes), at_(at) {}
   template <class T>
   T get() {
     T v;
@@ -98,7 +99,7 @@ class Reader {
     at_ += n;
   }
   const std::string& bytes_;
-  size_t at_ = 0;
+  size_t at_;
 };
 
 template <class Opt>
@@ -113,8 +114,10 @@ std::optional<double> getOptional(Reader& r) {
   return has ? std::optional<double>(v) : std::nullopt;
 }
 
+// The answer 'R' and the recording's records.
 std::string encode(const Recording& rec) {
   Writer w;
+  w.bytes.push_back('R');
   w.putVector(rec.step_times);
   w.put<uint64_t>(rec.counts.size());
   for (const auto& [key, n] : rec.counts) {
@@ -153,8 +156,8 @@ std::string encode(const Recording& rec) {
   return w.bytes;
 }
 
-Recording decode(const std::string& bytes) {
-  Reader r(bytes);
+Recording decode(const std::string& bytes, size_t at) {
+  Reader r(bytes, at);
   Recording rec;
   rec.step_times = r.getVector<double>();
   for (auto n = r.get<uint64_t>(); n > 0; --n) {
@@ -244,7 +247,7 @@ bool writeAll(int fd, const std::string& bytes) {
   std::string answer;
   int code = 0;
   try {
-    answer = "R" + encode(readRawlogInProcess(path, progress));
+    answer = encode(readRawlogInProcess(path, progress));
   } catch (const std::exception& e) {
     answer = std::string("E") + e.what();
     code = 1;
@@ -293,7 +296,7 @@ Recording readRawlog(const std::string& path) {
   if (!answer.empty() && answer[0] == 'E') throw InputError(answer.substr(1));
   if (!answer.empty() && answer[0] == 'R' && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
     try {
-      return decode(answer.substr(1));
+      return decode(answer, 1);
     } catch (const std::exception& e) {
       throwInputError(path, 0, std::string("rawlog reader's answer is damaged: ") + e.what());
     }

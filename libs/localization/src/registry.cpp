@@ -116,16 +116,18 @@ std::vector<std::string> Registry::names() const {
   return out;
 }
 
+std::string Registry::knownNames() const {
+  std::string list;
+  for (const auto& m : methods_) list += (list.empty() ? "" : ", ") + m.name;
+  return list;
+}
+
 std::unique_ptr<Estimator> Registry::create(const std::string& spec,
                                             const EstimatorContext& context,
                                             const ParamSet& extra) const {
   MethodSpec parsed = MethodSpec::parse(spec);
   const MethodInfo* info = find(parsed.name);
-  if (!info) {
-    std::string known;
-    for (const auto& m : methods_) known += (known.empty() ? "" : ", ") + m.name;
-    throw ParamError("unknown method '" + parsed.name + "' (known: " + known + ")");
-  }
+  if (!info) throw ParamError("unknown method '" + parsed.name + "' (known: " + knownNames() + ")");
   ParamSet merged = extra;
   merged.merge(parsed.params);  // the spec overrides the config file
   return info->make(merged, context);
@@ -137,12 +139,9 @@ SetOverride SetOverride::parse(const std::string& text, const Registry& registry
   if (eq == std::string::npos || dot == std::string::npos || dot == 0 || dot + 1 == eq)
     throw ParamError("--set expects method.key=value, got " + quoteToken(text));
   SetOverride out{text.substr(0, dot), text.substr(dot + 1, eq - dot - 1), text.substr(eq + 1)};
-  if (!registry.find(out.method)) {
-    std::string names;
-    for (const auto& n : registry.names()) names += (names.empty() ? "" : ", ") + n;
+  if (!registry.find(out.method))
     throw ParamError("--set " + quoteToken(text) + ": " + quoteToken(out.method) +
-                     " is not a method (known: " + names + ")");
-  }
+                     " is not a method (known: " + registry.knownNames() + ")");
   return out;
 }
 

@@ -14,16 +14,12 @@ void UwbAkf::start(const uwb::Fix& fix) {
   process_ = {};
   measurement_ = {};
   measurement_.R = fix.covariance;
-  noise_started_ = false;  // Q̂_0 waits for the first interval
 }
 
 bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   Eigen::Matrix4d f, q;
   constantVelocityModel(dt, params_.accel_psd, f, q, params_.velocity_tau);
-  if (!noise_started_) {
-    process_.Q = q;
-    noise_started_ = true;
-  }
+  if (process_.k == 0) process_.Q = q;  // Q̂_0: the model's over the first interval
   Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
   h.leftCols<2>().setIdentity();
   const auto step = kalman::sageHusaStep<4, 2>(x_, p_, process_, measurement_, f, fix.position, h,
@@ -59,9 +55,10 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
   // by range (q̂ the mean correction, Q̂ from K e e^T K^T + P - F P F^T), they drifted on the
   // demo, where each range corrects one direction only (uwb-akf 8.1 m, uwb-iakf 1036 m).
   Eigen::Matrix4d f;
-  constantVelocityModel(std::max(0.0, dt(r.measurement.t)), params_.accel_psd, f, process_.Q,
+  kalman::SageHusaProcess<4> process;  // q̂ = 0, Q̂ the model's
+  constantVelocityModel(std::max(0.0, dt(r.measurement.t)), params_.accel_psd, f, process.Q,
                         params_.velocity_tau);
-  const auto pred = kalman::sageHusaPredict<4>(x_, p_, process_, f);
+  const auto pred = kalman::sageHusaPredict<4>(x_, p_, process, f);
   t_ = std::max(t_, r.measurement.t);
   Eigen::Matrix<double, 1, 4> hj;
   const double predicted = rangeModel(r, &hj);

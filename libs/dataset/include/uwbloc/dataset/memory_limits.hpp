@@ -47,18 +47,11 @@ class ScopedAllocationCap {
   ScopedAllocationCap& operator=(const ScopedAllocationCap&) = delete;
 
   /// The bytes allocated under this cap so far, and the request refused (0 when none was).
-  std::size_t used() const noexcept { return active_ ? currentUsed() : used_; }
-  std::size_t refused() const noexcept { return active_ ? currentRefused() : refused_; }
-
-  /// Ends the cap before the object does (e.g. to compose an error message); idempotent.
-  void release() noexcept;
+  std::size_t used() const noexcept;
+  std::size_t refused() const noexcept;
 
  private:
-  static std::size_t currentUsed() noexcept;
-  static std::size_t currentRefused() noexcept;
   std::size_t previous_cap_, previous_used_, previous_refused_;
-  std::size_t used_ = 0, refused_ = 0;
-  bool active_ = true;
 };
 
 /// True when this executable links the guard (probed once: a 1-byte cap refuses 64 bytes).

@@ -39,6 +39,8 @@ class Registry {
   const MethodInfo* find(const std::string& name) const;
   const std::vector<MethodInfo>& methods() const { return methods_; }
   std::vector<std::string> names() const;
+  /// The names as one comma-separated list, for an error message.
+  std::string knownNames() const;
 
   /// Builds the estimator for `spec`, with `extra` (e.g. from a config file) applied before the
   /// spec's own overrides. Throws ParamError for an unknown method or parameter.

@@ -58,7 +58,6 @@ class UwbAkf : public UwbKf {
   UwbAkfParams akf_;
   kalman::SageHusaProcess<4> process_;
   kalman::SageHusaMeasurement<2> measurement_;
-  bool noise_started_ = false;
 };
 
 /// mode=ranges.
@@ -72,7 +71,6 @@ class UwbAkfRanges : public UwbEkf {
 
  private:
   UwbAkfParams akf_;
-  kalman::SageHusaProcess<4> process_;  ///< the constant-velocity model's, never adapted
   std::map<int, kalman::SageHusaMeasurement<1>> anchors_;
 };
 
