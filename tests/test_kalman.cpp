@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "uwbloc/localization/kalman/cubature.hpp"
 #include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/kalman/sage_husa.hpp"
 #include "uwbloc/localization/motion_models.hpp"
@@ -174,4 +175,127 @@ TEST(Ctrv, OneStepByHandAndTheJacobianAgainstNumbers) {
   EXPECT_NEAR(q(4, 4), 4.0 * 0.04, 1e-12);
   EXPECT_NEAR(q(0, 2), 2.0 * 2.0 * 0.25, 1e-12);  // dt^2/2 * dt * sa^2
   EXPECT_NEAR(q(1, 1), 0.0, 1e-12);
+}
+
+// ---- The point-based filters (kalman/cubature.hpp) ----
+
+// The cubature rule on h(x) = x^2 with x ~ N(m, s^2): the two points m ± s give the exact mean
+// m^2 + s^2 and the variance 4 m^2 s^2 (the third-degree rule misses the true variance's
+// 2 s^4), and the cross-covariance 2 m s^2.
+TEST(Cubature, MomentsOfASquareByHand) {
+  const double m = 3.0, s = 0.5;
+  const Vec<1> x(m);
+  const Mat<1, 1> p(s * s);
+  const auto set = cubaturePoints<1>(x, p);
+  EXPECT_NEAR(set.x(0, 0), m + s, 1e-12);
+  EXPECT_NEAR(set.x(0, 1), m - s, 1e-12);
+  const auto mo = propagate<1, 1>(set, x, [](const Vec<1>& v) { return Vec<1>(v(0) * v(0)); });
+  EXPECT_NEAR(mo.z(0), m * m + s * s, 1e-12);
+  EXPECT_NEAR(mo.pzz(0, 0), 4 * m * m * s * s, 1e-12);
+  EXPECT_NEAR(mo.pxz(0, 0), 2 * m * s * s, 1e-12);
+}
+
+// A linear measurement through the cubature update is the Kalman update exactly; the same
+// numbers as Kalman.JosephUpdateWithCorrelatedState.
+TEST(Cubature, LinearUpdateIsTheKalmanUpdate) {
+  Vec<2> x = Vec<2>::Zero();
+  Mat<2, 2> p;
+  p << 2, 1, 1, 2;
+  const auto mo = propagate<2, 1>(cubaturePoints<2>(x, p), x,
+                                  [](const Vec<2>& v) { return Vec<1>(v(0)); });
+  cubatureUpdate<2, 1>(x, p, mo, Vec<1>(1.0), Mat<1, 1>(1.0));
+  EXPECT_NEAR(x(0), 2.0 / 3, 1e-12);
+  EXPECT_NEAR(x(1), 1.0 / 3, 1e-12);
+  EXPECT_NEAR(p(0, 0), 2.0 / 3, 1e-12);
+  EXPECT_NEAR(p(0, 1), 1.0 / 3, 1e-12);
+  EXPECT_NEAR(p(1, 1), 5.0 / 3, 1e-12);
+  // The time update through a linear f is F P F^T + Q.
+  Mat<2, 2> f;
+  f << 1, 0.5, 0, 1;
+  const Mat<2, 2> q = Eigen::Vector2d(0.1, 0.2).asDiagonal();
+  const Mat<2, 2> expected = f * p * f.transpose() + q;
+  const Vec<2> x_expected = f * x;
+  cubaturePredict<2>(x, p, [&](const Vec<2>& v) { return Vec<2>(f * v); }, q);
+  EXPECT_TRUE(x.isApprox(x_expected, 1e-12));
+  EXPECT_TRUE(p.isApprox(expected, 1e-12));
+}
+
+// The H∞ update in one dimension: P = 1, H = 1, R = 1, y = 1. The CKF posterior is 1/2; with
+// γ = 2 sqrt(1/2), γ^-2 = 1/2 and P = (1 + 1 - 1/2)^-1 = 2/3; the state is the CKF's, 1/2.
+// As the ratio grows the covariance tends to the CKF's.
+TEST(Cubature, HinfUpdateByHand) {
+  auto run = [](double ratio, double* gamma) {
+    Vec<1> x(0.0);
+    Mat<1, 1> p(1.0);
+    const auto mo =
+        propagate<1, 1>(cubaturePoints<1>(x, p), x, [](const Vec<1>& v) { return v; });
+    *gamma = hinfCubatureUpdate<1, 1>(x, p, mo, Vec<1>(1.0), Mat<1, 1>(1.0), ratio,
+                                      Mat<1, 1>::Identity());
+    EXPECT_NEAR(x(0), 0.5, 1e-12);
+    return p(0, 0);
+  };
+  double gamma = 0.0;
+  EXPECT_NEAR(run(2.0, &gamma), 2.0 / 3, 1e-12);
+  EXPECT_NEAR(gamma, 2.0 * std::sqrt(0.5), 1e-12);
+  EXPECT_NEAR(run(1e4, &gamma), 0.5, 1e-6);
+  // A selection L that excludes the measured state leaves the CKF's covariance.
+  Vec<2> x = Vec<2>::Zero();
+  Mat<2, 2> p = Mat<2, 2>::Identity();
+  const auto mo = propagate<2, 1>(cubaturePoints<2>(x, p), x,
+                                  [](const Vec<2>& v) { return Vec<1>(v(0)); });
+  const Mat<2, 2> only_second = Eigen::Vector2d(0, 1).asDiagonal();
+  hinfCubatureUpdate<2, 1>(x, p, mo, Vec<1>(1.0), Mat<1, 1>(1.0), 2.0, only_second);
+  EXPECT_NEAR(p(0, 0), 0.5, 1e-12);
+  EXPECT_NEAR(p(1, 1), 1.0 / (1.0 - 1.0 / (4.0 * 1.0)), 1e-12);  // γ^2 = 4 λ_max(L P L) = 4
+}
+
+// Rank-one Cholesky update and downdate against L L^T ± u u^T; a downdate that would make the
+// matrix indefinite is refused, and the rebuild floors it.
+TEST(Cubature, CholeskyRankOneUpdateAndDowndate) {
+  Mat<3, 3> a;
+  a << 4, 1, 0.5, 1, 3, 0.2, 0.5, 0.2, 2;
+  Mat<3, 3> l = lowerSquareRoot<3>(a);
+  const Vec<3> u(0.3, -0.5, 0.7);
+  ASSERT_TRUE(choleskyRankOne<3>(l, u, 1.0));
+  EXPECT_TRUE((l * l.transpose()).isApprox(a + u * u.transpose(), 1e-12));
+  ASSERT_TRUE(choleskyRankOne<3>(l, u, -1.0));
+  EXPECT_TRUE((l * l.transpose()).isApprox(a, 1e-12));
+  EXPECT_TRUE(l.isLowerTriangular(1e-12));
+  const Vec<3> big(3.0, 0.0, 0.0);
+  const Mat<3, 3> before = l;
+  EXPECT_FALSE(choleskyRankOne<3>(l, big, -1.0));
+  EXPECT_TRUE(l.isApprox(before));
+  EXPECT_FALSE(choleskyRankOneOrRebuild<3>(l, big, -1.0));
+  EXPECT_TRUE(l.allFinite());
+  EXPECT_GE((l * l.transpose()).eigenvalues().real().minCoeff(), -1e-9);
+}
+
+// The square-root unscented filter on a linear model is the Kalman filter, for the default
+// points (alpha 1, beta 2, kappa 0) and for a negative zeroth weight (kappa = -1: lambda = -1,
+// wc_0 = -1/3 + 2), whose rank-one update is a downdate.
+TEST(Cubature, SquareRootUnscentedOnALinearModelIsTheKalmanFilter) {
+  for (const double kappa : {0.0, -1.0}) {
+    Vec<2> x(1.0, -0.5);
+    Mat<2, 2> p;
+    p << 2, 0.3, 0.3, 1;
+    Mat<2, 2> s = lowerSquareRoot<2>(p);
+    Mat<2, 2> f;
+    f << 1, 0.1, 0, 1;
+    const Mat<2, 2> q = Eigen::Vector2d(0.01, 0.04).asDiagonal();
+    sqrtUnscentedPredict<2>(x, s, [&](const Vec<2>& v) { return Vec<2>(f * v); },
+                            lowerSquareRoot<2>(q), 1.0, 2.0, kappa);
+    Vec<2> xk = f * Vec<2>(1.0, -0.5);
+    Mat<2, 2> pk = f * p * f.transpose() + q;
+    EXPECT_TRUE(x.isApprox(xk, 1e-12)) << kappa;
+    EXPECT_TRUE((s * s.transpose()).isApprox(pk, 1e-12)) << kappa;
+    // Measure the first state: z = 1.4, R = 0.25.
+    const auto set = unscentedPoints<2>(x, s, 1.0, 2.0, kappa);
+    const auto mo = propagate<2, 1>(set, x, [](const Vec<2>& v) { return Vec<1>(v(0)); });
+    sqrtUnscentedUpdate<2, 1>(x, s, set, mo, Vec<1>(1.4 - mo.z(0)), Mat<1, 1>(0.5));
+    const Mat<1, 2> h(1.0, 0.0);
+    const auto inn = innovate<2, 1>(pk, Vec<1>(1.4 - xk(0)), h, Mat<1, 1>(0.25));
+    josephUpdate<2, 1>(xk, pk, inn, h, Mat<1, 1>(0.25));
+    EXPECT_TRUE(x.isApprox(xk, 1e-12)) << kappa;
+    EXPECT_TRUE((s * s.transpose()).isApprox(pk, 1e-12)) << kappa;
+  }
 }

@@ -80,6 +80,21 @@ const std::vector<ParamLimit>& paramLimits() {
       {"ang", 0, 10, true, "[rad]"},
       {"min_goodness", 0, 1, false, ""},
       {"heading_offset", -10, 10, false, "[rad]"},
+      {"hinf", 0, 1e6, false, "the H-infinity bound gamma (0: off)"},
+      {"k0", 0, 100, true, "[std]"},
+      {"k1", 0, 1e3, true, "[std]"},
+      {"nlos_threshold", 0, 1e3, false, "[m]"},
+      {"ut_alpha", 0, 10, true, "the points' spread"},
+      {"ut_beta", 0, 10, false, ""},
+      {"ut_kappa", -3.9, 100, false, "n + kappa > 0 with n = 4"},
+      {"groups", 1, 64, false, "local filters"},
+      {"n0", 1, 1000, false, "ranges: the window's cost grows with it"},
+      {"kn", 0, 1e3, false, "ranges per metre"},
+      {"c0", 0, 100, false, "[std]"},
+      {"c1", 0, 100, false, "[std]"},
+      {"beta", 0, 1, false, "a mixing weight"},
+      {"p_reject", 0, 1, false, "a probability"},
+      {"fading_max", 1, 1e6, false, "a covariance factor (1: no fading)"},
   };
   return limits;
 }

@@ -7,6 +7,9 @@
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
+#include "uwbloc/localization/methods/uwb_shkf.hpp"
+#include "uwbloc/localization/methods/federated_ekf.hpp"
+#include "uwbloc/localization/methods/point_filters.hpp"
 
 namespace uwbloc::loc {
 
@@ -65,6 +68,31 @@ Registry makeBuiltin() {
       {"ranges"}));
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
       "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
+      {"ranges"}));
+  r.add(makeMethod<UwbShkf, UwbShkfParams>(
+      "uwb-shkf",
+      "UWB only: improved Sage-Husa KF on each range: fading factor, variable window, adaptive "
+      "factor; takes a per-range NLOS probability",
+      {"ranges"}));
+  r.add(makeMethod<UwbCkf, UwbCkfParams>(
+      "uwb-ckf", "UWB only: cubature KF (third-degree spherical-radial rule) on each range",
+      {"ranges"}));
+  r.add(withDefault(makeMethod<UwbCkf, UwbCkfParams>(
+                        "uwb-hinf-ckf",
+                        "UWB only: H-infinity cubature KF on each range (hinf: the bound over "
+                        "the smallest feasible)",
+                        {"ranges"}),
+                    "hinf", "5"));
+  r.add(makeMethod<UwbIahCkf, UwbIahCkfParams>(
+      "uwb-iahckf",
+      "UWB only: the H-infinity cubature paper's improved adaptive filter: H-inf CKF, Sage-Husa "
+      "noise per anchor, IGG-III robust factor above the 0.24 m NLOS threshold",
+      {"ranges"}));
+  r.add(makeMethod<UwbSrukf, UwbSrukfParams>(
+      "uwb-srukf", "UWB only: square-root unscented KF on each range", {"ranges"}));
+  r.add(makeMethod<FederatedEkf, FederatedEkfParams>(
+      "federated-ekf",
+      "UWB only: federated EKF, local EKFs on anchor groups fused by information (fusion-reset)",
       {"ranges"}));
   r.add(makeMethod<OdometryEstimator, OdometryParams>(
       "odom", "Odometry only: dead reckoning from the first ground-truth pose", {"odometry"}));

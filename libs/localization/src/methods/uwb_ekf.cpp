@@ -19,19 +19,33 @@ void UwbEkf::reset() {
   init_epochs_ = EpochBuffer(params_.epoch_window);
 }
 
-void UwbEkf::predict(double t) {
-  const double dt = t - t_;
-  if (dt <= 0.0) return;
-  kalman::predictConstantVelocity(x_, p_, dt, params_.accel_psd, params_.velocity_tau);
-  t_ = t;
+void UwbEkf::predictTo(double t) {
+  kalman::predictConstantVelocity(x_, p_, t - t_, params_.accel_psd, params_.velocity_tau);
+}
+
+double UwbEkf::rangeAt(const Eigen::Vector4d& x, const AcceptedRange& r) {
+  const Eigen::Vector3d tag(x(0), x(1), r.measurement.tag_on_robot.z());
+  return std::max((tag - r.anchor).norm(), 1e-6);
 }
 
 double UwbEkf::rangeModel(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const {
-  const Eigen::Vector3d tag(x_(0), x_(1), r.measurement.tag_on_robot.z());
-  const Eigen::Vector3d diff = tag - r.anchor;
-  const double h = std::max(diff.norm(), 1e-6);
-  *hj << diff.x() / h, diff.y() / h, 0.0, 0.0;
+  const double h = rangeAt(x_, r);
+  *hj << (x_(0) - r.anchor.x()) / h, (x_(1) - r.anchor.y()) / h, 0.0, 0.0;
   return h;
+}
+
+UwbEkf::RangePrediction UwbEkf::predictRange(const AcceptedRange& r) {
+  RangePrediction pred;
+  pred.z = rangeModel(r, &hj_);
+  pred.s = (hj_ * p_ * hj_.transpose())(0, 0) + rangeVariance();
+  return pred;
+}
+
+void UwbEkf::correctWithRange(const AcceptedRange&, double y, const RangePrediction& pred) {
+  kalman::Innovation<1> inn;
+  inn.y(0) = y;
+  inn.s(0, 0) = pred.s;
+  kalman::josephUpdate<4, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance()));
 }
 
 PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
@@ -93,16 +107,21 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
 }
 
 bool UwbEkf::updateWithRange(const AcceptedRange& r) {
-  predict(r.measurement.t);
-  Eigen::Matrix<double, 1, 4> hj;
-  const int id = r.measurement.anchor_id;
+  if (r.measurement.t > t_) {
+    predictTo(r.measurement.t);
+    t_ = r.measurement.t;
+  }
+  const RangePrediction pred = predictRange(r);
+  const double y = r.measurement.range - pred.z;
+  const bool in_gate = uwb::ChiSquareGate(params_.gate).acceptSquared(y * y / pred.s);
+  if (!admit(r.measurement.anchor_id, y, in_gate)) return false;
+  correctWithRange(r, y, pred);
+  return true;
+}
+
+bool UwbEkf::admit(int id, double innovation, bool in_gate) {
   // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
   const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigmaValue());
-  const double predicted = rangeModel(r, &hj);
-  const auto inn = kalman::innovate<4, 1>(
-      p_, Eigen::Matrix<double, 1, 1>(r.measurement.range - predicted), hj, rangeNoise());
-  const double innovation = inn.y(0);
-  const bool in_gate = kalman::inGate(inn, uwb::ChiSquareGate(params_.gate));
   auto q = quarantine_.find(id);
   if (!in_gate) {
     countRejection(uwb::RejectReason::kInnovation, id);
@@ -116,7 +135,6 @@ bool UwbEkf::updateWithRange(const AcceptedRange& r) {
   }
   if (q == quarantine_.end() || ++q->second >= params_.readmit) {
     if (q != quarantine_.end()) quarantine_.erase(q);
-    kalman::josephUpdate<4, 1>(x_, p_, inn, hj, rangeNoise());
     return true;
   }
   countRejection("quarantine", id);

@@ -23,6 +23,9 @@ struct Range {
   Eigen::Vector3d tag_on_robot = Eigen::Vector3d::Zero();
   std::optional<double> rx_power_dbm;  ///< received power, when the device reports it
   std::optional<double> fp_power_dbm;  ///< first-path power, when the device reports it
+  /// P(NLOS) from a classifier, when one has judged this range (the filters that take it widen
+  /// the range's noise by 1 / (1 - p)).
+  std::optional<double> nlos_probability;
 };
 
 /// Ranges to another tag use anchor id kMobileAnchorBase + that tag's id.

@@ -66,13 +66,33 @@ class UwbEkf : public UwbEstimator {
   void reset() override;
   /// Called when the state (re)starts (the adaptive filter restarts its noise statistics).
   virtual void onStart() {}
-  /// Predicts to the range's time and updates with it (gate, quarantine, Joseph update); false
-  /// when the range was not used.
+  /// Predicts to the range's time and updates with it: predictTo, predictRange, the gate and the
+  /// quarantine (admit), correctWithRange. False when the range was not used.
   virtual bool updateWithRange(const AcceptedRange& r);
+
+  /// A range's prediction at the predicted state: its value and the innovation variance
+  /// (R included).
+  struct RangePrediction {
+    double z = 0.0;
+    double s = 0.0;
+  };
+  /// The time update to t (t > t_): constant velocity, x <- F x, P <- F P F^T + Q.
+  virtual void predictTo(double t);
+  /// EKF: h(x) and H P H^T + R with the Jacobian of rangeModel (kept for correctWithRange).
+  virtual RangePrediction predictRange(const AcceptedRange& r);
+  /// EKF: the Joseph update with the innovation y = range - prediction.z.
+  virtual void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred);
+  /// The gate's and the quarantine's verdict on anchor `id`'s range with this innovation; a
+  /// refused range is counted.
+  bool admit(int id, double innovation, bool in_gate);
+
   /// The measured 3D distance h(x) from the tag at (x, y, tag height) to the anchor, and its
   /// Jacobian [dx/h, dy/h, 0, 0] (PF-IBAS paper eq. (3)-(4) before the height projection).
   double rangeModel(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const;
+  /// The same at a state given as a point (the point-based filters).
+  static double rangeAt(const Eigen::Vector4d& x, const AcceptedRange& r);
   double dt(double t) const { return t - t_; }
+  double rangeVariance() const { return params_.front.sigmaValue() * params_.front.sigmaValue(); }
 
   UwbEkfParams params_;
   double t_ = 0.0;
@@ -80,10 +100,7 @@ class UwbEkf : public UwbEstimator {
   Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
 
  private:
-  void predict(double t);
-  Eigen::Matrix<double, 1, 1> rangeNoise() const {
-    return Eigen::Matrix<double, 1, 1>(params_.front.sigmaValue() * params_.front.sigmaValue());
-  }
+  Eigen::Matrix<double, 1, 4> hj_;  ///< the Jacobian of the last predictRange
   bool initialise(const AcceptedRange& r);
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 

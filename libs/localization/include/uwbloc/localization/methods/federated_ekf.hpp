@@ -1,0 +1,53 @@
+// federated-ekf: the H∞ cubature paper's comparison filter (adaptive-hinf-ckf-uwb-ins.txt, Table 3),
+// Carlson's federated filter ("Federated square root filter for decentralized parallel
+// processes", IEEE TAES 26(3), 1990) in the fusion-reset form. Local EKFs (uwb-ekf's constant-
+// velocity state, range model, gate and quarantine) each take the ranges of one group of anchors
+// (the anchors in id order, dealt round-robin into `groups`); with the information-sharing
+// factors β_i = 1 / groups each runs with Q / β_i and restarts from P_g / β_i. The master
+// filter fuses them after every range,
+//   P_g = (Σ P_i^-1)^-1,   x_g = P_g Σ P_i^-1 x_i,
+// and resets them to (x_g, P_g / β_i) once every group has measured since the last reset. The
+// paper's federated filter fuses a UWB and an INS sub-filter; without an IMU the sub-filters are
+// anchor groups, which keeps the decentralised structure (and its information loss).
+#pragma once
+
+#include <vector>
+
+#include "uwbloc/localization/methods/uwb_ekf.hpp"
+
+namespace uwbloc::loc {
+
+struct FederatedEkfParams {
+  UwbEkfParams ekf;
+  int groups = 2;  ///< local filters (anchor groups)
+
+  template <class V>
+  void visit(V&& v) {
+    ekf.visit(v);
+    v("groups", groups, "local filters, each on one group of anchors (round-robin in id order)");
+  }
+};
+
+class FederatedEkf : public UwbEkf {
+ public:
+  FederatedEkf(const FederatedEkfParams& params, const EstimatorContext& context);
+
+ protected:
+  void onStart() override;
+  bool updateWithRange(const AcceptedRange& r) override;
+
+ private:
+  struct Local {
+    Eigen::Vector4d x;
+    Eigen::Matrix4d p;
+    double t = 0.0;
+    bool measured = false;
+  };
+  void fuse();
+  void resetLocals();
+
+  std::vector<Local> locals_;
+  std::map<int, int> group_of_;  ///< anchor id -> local filter
+};
+
+}  // namespace uwbloc::loc

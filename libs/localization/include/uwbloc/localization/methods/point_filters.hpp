@@ -1,0 +1,130 @@
+// The H∞ cubature paper's filters (adaptive-hinf-ckf-uwb-ins.txt) and its comparison filters, on
+// each range (tightly coupled) with uwb-ekf's state, start, gate and quarantine (uwb_ekf.hpp):
+//   - uwb-ckf: the cubature Kalman filter (kalman/cubature.hpp, Arasaratnam & Haykin 2009);
+//   - uwb-hinf-ckf: the H∞ cubature filter with the bound γ = `hinf`;
+//   - uwb-iahckf: the paper's improved adaptive H∞ CKF: the H∞ CKF with a Sage-Husa statistic
+//     per anchor (r̂ the range bias, R̂ its variance, the greenhouse paper's eq. 16 and 24 with
+//     H P H^T replaced by the points' P_zz) and the IGG-III robust factor on R: for the
+//     normalised innovation v = |e| / sqrt(P_zz + R̂),
+//       v <= k0: R unchanged;  k0 < v <= k1: R × (v / k0) ((k1 - k0) / (k1 - v))^2;  v > k1: dropped
+//     (Yang, Song & Xu, "Adaptively robust filtering for kinematic geodetic positioning",
+//     J. Geodesy 75, 2001, the three-segment equivalent weight; the paper's eq. was lost).
+//     The paper's NLOS test, |UWB - INS| > 0.24 m, is the floor under it: a range whose
+//     innovation is within `nlos_threshold` is never down-weighted, and only ranges below the
+//     threshold or within k0 feed the statistics (an NLOS burst would otherwise become R̂);
+//   - uwb-srukf: the square-root unscented filter (van der Merwe & Wan 2001; the paper compares
+//     an improved variant, ISRUKF, whose changes were lost with its equations).
+// The constant-velocity time update is linear, so the cubature filters propagate it exactly
+// (F P F^T + Q, as the points would); the square-root filter propagates its points and S.
+#pragma once
+
+#include <map>
+
+#include "uwbloc/localization/kalman/cubature.hpp"
+#include "uwbloc/localization/kalman/sage_husa.hpp"
+#include "uwbloc/localization/methods/uwb_ekf.hpp"
+
+namespace uwbloc::loc {
+
+struct UwbCkfParams {
+  UwbEkfParams ekf;
+  double hinf = 0.0;  ///< γ, the H∞ bound; 0 = the plain CKF update
+
+  template <class V>
+  void visit(V&& v) {
+    ekf.visit(v);
+    v("hinf", hinf,
+      "H-infinity bound gamma: caps each state variance below gamma^2; larger is closer to the "
+      "CKF; 0 = plain CKF");
+  }
+};
+
+class UwbCkf : public UwbEkf {
+ public:
+  UwbCkf(const UwbCkfParams& params, const EstimatorContext& context);
+
+ protected:
+  RangePrediction predictRange(const AcceptedRange& r) override;
+  void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) override;
+  /// The CKF or H∞ update with range noise `r_var`.
+  void cubatureCorrect(double y, double r_var);
+
+  double hinf_;
+  kalman::PointMoments<4, 1> moments_;  ///< of the last predictRange
+};
+
+struct UwbIahCkfParams {
+  UwbCkfParams ckf = [] {
+    UwbCkfParams p;
+    p.hinf = 5.0;
+    return p;
+  }();
+  double forgetting = 0.97;     ///< b of the Sage-Husa weight d_k
+  double k0 = 2.0;              ///< IGG-III: below, R is kept [std]
+  double k1 = 5.0;              ///< IGG-III: above, the range is dropped [std]
+  double nlos_threshold = 0.24; ///< |innovation| below which a range is never down-weighted [m]
+  AutoDouble r_floor;           ///< smallest std of R̂ [m]; auto: half the range sigma
+  bool bias = true;             ///< estimate each anchor's range bias r̂
+
+  template <class V>
+  void visit(V&& v) {
+    ckf.visit(v);
+    v("bias", bias, "estimate each anchor's range bias (1) or not (0)");
+    v("b", forgetting, "forgetting factor of the noise statistics, d_k = (1-b)/(1-b^(k+1))");
+    v("k0", k0, "IGG-III: normalised innovations up to k0 keep R");
+    v("k1", k1, "IGG-III: beyond k1 the range is dropped; between, R is inflated");
+    v("nlos_threshold", nlos_threshold,
+      "innovations within this are never down-weighted (the paper's UWB-vs-INS 0.24 m) [m]");
+    v("r_floor", r_floor, "smallest std kept in the estimated R [m], or auto: half of sigma");
+  }
+};
+
+class UwbIahCkf : public UwbCkf {
+ public:
+  UwbIahCkf(const UwbIahCkfParams& params, const EstimatorContext& context);
+
+ protected:
+  void onStart() override { anchors_.clear(); }
+  bool updateWithRange(const AcceptedRange& r) override;
+
+ private:
+  UwbIahCkfParams iah_;
+  std::map<int, kalman::SageHusaMeasurement<1>> anchors_;
+};
+
+/// The IGG-III variance factor for a normalised innovation v (1 up to k0, infinite beyond k1).
+double iggIIIFactor(double v, double k0, double k1);
+
+struct UwbSrukfParams {
+  UwbEkfParams ekf;
+  double alpha = 1.0;  ///< spread of the points
+  double beta = 2.0;   ///< prior knowledge of the distribution (2: Gaussian)
+  double kappa = 0.0;  ///< secondary scaling
+
+  template <class V>
+  void visit(V&& v) {
+    ekf.visit(v);
+    v("ut_alpha", alpha, "unscented spread alpha");
+    v("ut_beta", beta, "unscented beta (2 for a Gaussian)");
+    v("ut_kappa", kappa, "unscented kappa (n + kappa > 0, n = 4)");
+  }
+};
+
+class UwbSrukf : public UwbEkf {
+ public:
+  UwbSrukf(const UwbSrukfParams& params, const EstimatorContext& context);
+
+ protected:
+  void onStart() override;
+  void predictTo(double t) override;
+  RangePrediction predictRange(const AcceptedRange& r) override;
+  void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) override;
+
+ private:
+  UwbSrukfParams sr_;
+  Eigen::Matrix4d s_ = Eigen::Matrix4d::Identity();  ///< P = S S^T
+  kalman::PointSet<4, 9> points_;
+  kalman::PointMoments<4, 1> moments_;
+};
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,88 @@
+#include "uwbloc/localization/methods/uwb_shkf.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "uwbloc/localization/kalman/sage_husa.hpp"
+#include "uwbloc/localization/motion_models.hpp"
+
+namespace uwbloc::loc {
+
+UwbShkf::UwbShkf(const UwbShkfParams& params, const EstimatorContext& context)
+    : UwbEkf(params.ekf, context), sh_(params) {
+  if (!(params.c1 > params.c0)) throw ParamError("parameter 'c1' must exceed 'c0'");
+  if (params.beta.value && (*params.beta.value < 0.0 || *params.beta.value > 1.0))
+    throw ParamError("parameter 'beta' must be in [0, 1] or auto");
+}
+
+double UwbShkf::adaptiveFactor(double change, double c0, double c1) {
+  if (change <= c0) return 0.0;
+  if (change > c1) return 1.0;
+  return (change - c0) / (c1 - c0);
+}
+
+bool UwbShkf::updateWithRange(const AcceptedRange& r) {
+  const int id = r.measurement.anchor_id;
+  const double p_nlos = r.measurement.nlos_probability.value_or(0.0);
+  if (p_nlos > sh_.p_reject) {
+    countRejection("nlos_probability", id);
+    return false;
+  }
+  Eigen::Matrix4d f, q;
+  constantVelocityModel(std::max(0.0, dt(r.measurement.t)), params_.accel_psd, f, q,
+                        params_.velocity_tau);
+  t_ = std::max(t_, r.measurement.t);
+  const Eigen::Vector4d x_pred = f * x_;
+  const Eigen::Matrix4d fpf = f * p_ * f.transpose();
+  auto [it, fresh] = anchors_.try_emplace(id);
+  AnchorStatistic& a = it->second;
+  if (fresh) a.r = a.c_exp = rangeVariance();
+  x_ = x_pred;
+  p_ = fpf + q;
+  Eigen::Matrix<double, 1, 4> hj;
+  const double innovation = r.measurement.range - rangeModel(r, &hj);
+  const double e = innovation - a.bias;
+  const double hpfh = (hj * fpf * hj.transpose())(0, 0);
+  const double hqh = (hj * q * hj.transpose())(0, 0);
+  // The gate and the quarantine on the unfaded prediction: a refused range leaves the
+  // statistics alone (an NLOS burst would otherwise become the anchor's noise).
+  const bool in_gate = uwb::ChiSquareGate(params_.gate).acceptSquared(e * e / (hpfh + hqh + a.r));
+  if (!admit(id, e, in_gate)) return false;
+
+  // The two innovation statistics and their adaptive mix.
+  const double d = kalman::sageHusaWeight(sh_.forgetting, a.k);
+  const double change = std::abs(e - a.last_e) / std::sqrt(std::max(a.c_exp, 1e-12));
+  a.c_exp = (1.0 - d) * a.c_exp + d * e * e;
+  const auto window = static_cast<std::size_t>(
+      std::clamp(sh_.n0 + sh_.kn * std::abs(a.last_e), double(sh_.n0), 10.0 * sh_.n0));
+  a.window.push_back(e * e);
+  while (a.window.size() > window) a.window.pop_front();
+  const double c_win =
+      std::accumulate(a.window.begin(), a.window.end(), 0.0) / static_cast<double>(a.window.size());
+  const double beta = sh_.beta.value ? *sh_.beta.value
+                      : a.k == 0     ? 0.0
+                                     : adaptiveFactor(change, sh_.c0, sh_.c1);
+  const double c = (1.0 - beta) * a.c_exp + beta * c_win;
+  // The fading factor, then R̂ from C_k.
+  const double lambda = hpfh > 0.0 ? std::clamp((c - hqh - a.r) / hpfh, 1.0, sh_.fading_max) : 1.0;
+  if (lambda > 1.0) ++stats_.events["fading_inflated"];
+  p_ = lambda * fpf + q;
+  a.r = c - (hj * p_ * hj.transpose())(0, 0);
+  const double floor = sh_.r_floor.value.value_or(0.5 * params_.front.sigmaValue());
+  if (a.r < floor * floor) {
+    a.r = floor * floor;
+    ++stats_.events["r_kept_positive"];
+  }
+  if (sh_.bias) a.bias = (1.0 - d) * a.bias + d * innovation;
+  a.last_e = e;
+  ++a.k;
+  stats_.estimated_noise[id] = {a.bias, std::sqrt(a.r), a.k};
+  // The update, with the range's NLOS probability widening its noise.
+  const Eigen::Matrix<double, 1, 1> rv(a.r / (1.0 - p_nlos));
+  const auto inn = kalman::innovate<4, 1>(p_, Eigen::Matrix<double, 1, 1>(e), hj, rv);
+  kalman::josephUpdate<4, 1>(x_, p_, inn, hj, rv);
+  return true;
+}
+
+}  // namespace uwbloc::loc
