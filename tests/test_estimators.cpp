@@ -14,6 +14,8 @@
 #include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/localization/methods/point_filters.hpp"
+#include "uwbloc/localization/methods/uwb_shkf.hpp"
 #include "uwbloc/localization/registry.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
@@ -36,6 +38,9 @@ const std::map<std::string, double> kRoomBound = {
     {"uwb-chan", 0.60},      {"uwb-kf", 0.33},
     {"uwb-akf", 0.57},       {"uwb-iakf", 0.72},
     {"uwb-ctrv-ekf", 0.41},  {"uwb-ekf", 0.25},
+    {"uwb-ckf", 0.29},       {"uwb-hinf-ckf", 0.29},
+    {"uwb-iahckf", 0.29},    {"uwb-srukf", 0.29},
+    {"federated-ekf", 0.30}, {"uwb-shkf", 0.29},
     {"odom", 0.05},          {"lidar-icp", 0.17},
     {"lidar-mcl", 0.03},     {"fused-naive", 0.04},
     {"fused-pf", 0.03},      {"pf-sir", 0.03},
@@ -421,4 +426,95 @@ TEST(Registry, SetOverridesParseAndRefuseWhatIsNoOverride) {
                                                {"method.key=value"});
   test::expectErrorMentions<loc::ParamError>([&] { loc::SetOverride::parse("uwb-kff.q=1", reg); },
                                              {"uwb-kff", "not a method", "uwb-kf"});
+}
+
+// ---- The point-based filters and the improved Sage-Husa KF ----
+
+// The federated filter with one local filter is uwb-ekf: same prediction, gate, quarantine and
+// update, and the fusion of one filter is that filter.
+TEST(PointFilters, FederatedWithOneGroupIsTheEkf) {
+  const auto ekf = eval::runMethod(room(), "uwb-ekf", 1);
+  const auto fed = eval::runMethod(room(), "federated-ekf:groups=1", 1);
+  ASSERT_EQ(ekf.trajectory.size(), fed.trajectory.size());
+  for (std::size_t i = 0; i < ekf.trajectory.size(); ++i)
+    ASSERT_LT((ekf.trajectory[i].pose - fed.trajectory[i].pose).norm(), 1e-9) << i;
+}
+
+// The robust and adaptive factors by hand: IGG-III (k0 2, k1 5) keeps R up to 2 std, inflates
+// by (v / k0) ((k1 - k0) / (k1 - v))^2 between (v = 3: 1.5 x 2.25 = 3.375) and drops beyond 5;
+// the Sage-Husa adaptive factor (c0 1, c1 3.5) is 0 for a slow change, linear between, 1 for
+// a rapid one.
+TEST(PointFilters, RobustAndAdaptiveFactorsByHand) {
+  EXPECT_EQ(loc::iggIIIFactor(1.5, 2.0, 5.0), 1.0);
+  EXPECT_NEAR(loc::iggIIIFactor(3.0, 2.0, 5.0), 3.375, 1e-12);
+  EXPECT_TRUE(std::isinf(loc::iggIIIFactor(5.5, 2.0, 5.0)));
+  EXPECT_EQ(loc::UwbShkf::adaptiveFactor(0.5, 1.0, 3.5), 0.0);
+  EXPECT_NEAR(loc::UwbShkf::adaptiveFactor(2.0, 1.0, 3.5), 0.4, 1e-12);
+  EXPECT_EQ(loc::UwbShkf::adaptiveFactor(4.0, 1.0, 3.5), 1.0);
+}
+
+namespace {
+
+uwb::Range rangeAt(double t, int anchor, double range) {
+  uwb::Range r;
+  r.t = t;
+  r.anchor_id = anchor;
+  r.range = range;
+  return r;
+}
+
+}  // namespace
+
+// One uwb-shkf step by hand. Start at (0, 0) with P = diag(0.25, 0.25, 1, 1) (start_sigma 0.5);
+// a range of 5.5 m to the anchor at (3, 4) at the start time (no motion, Q = 0) predicts 5,
+// H = [-0.6 -0.8 0 0], e = 0.5. First statistic (d = 1): C_exp = C_win = e^2 = 0.25, beta 0,
+// fading 1, R = C - H P H^T = 0.25 - 0.25 = 0 -> the floor (sigma / 2)^2 = 0.0025. Then
+// S = 0.2525, K = P H^T / S and the tag moves by K e = (-0.297030, -0.396040).
+TEST(Shkf, OneStepByHand) {
+  loc::EstimatorContext ctx;
+  ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
+  ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
+  auto est = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0", ctx);
+  ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
+  const auto out = est->process(rangeAt(10.0, 2, 5.5));
+  ASSERT_TRUE(out.has_value());
+  EXPECT_NEAR(out->pose.x(), 0.25 * -0.6 * 0.5 / 0.2525, 1e-9);
+  EXPECT_NEAR(out->pose.y(), 0.25 * -0.8 * 0.5 / 0.2525, 1e-9);
+  EXPECT_EQ(est->statistics().events.at("r_kept_positive"), 1);
+  EXPECT_NEAR(est->statistics().estimated_noise.at(2).sigma, 0.05, 1e-12);
+}
+
+// uwb-shkf takes a per-range NLOS probability: with one anchor's ranges 0.5 m long (inside the
+// gate, so the filter alone keeps them; 0.43 m RMSE against 0.07 m told), telling the
+// filter they are likely NLOS (p = 0.9: R x 10) tracks better than not telling it, and p above
+// p_reject drops the range and counts it.
+TEST(Shkf, TakesAPerRangeNlosProbability) {
+  data::Dataset ds = test::makeSquareLoop(5, 0.1, 60.0);
+  for (auto& e : ds.events)
+    if (auto* r = std::get_if<uwb::Range>(&e); r && r->anchor_id == 2) r->range += 0.5;
+  data::Dataset told = ds, dropped = ds;
+  long marked = 0;
+  for (auto& e : told.events)
+    if (auto* r = std::get_if<uwb::Range>(&e); r && r->anchor_id == 2) r->nlos_probability = 0.9;
+  for (auto& e : dropped.events)
+    if (auto* r = std::get_if<uwb::Range>(&e); r && r->anchor_id == 2) {
+      r->nlos_probability = 0.99;
+      ++marked;
+    }
+  auto rmse = [](const data::Dataset& d, const eval::RunResult& run) {
+    return eval::computeMetrics(eval::associate(run.trajectory, d.ground_truth), run.trajectory,
+                                d.ground_truth)
+        .rmse_2d;
+  };
+  const double blind = rmse(ds, eval::runMethod(ds, "uwb-shkf", 1));
+  const double informed = rmse(told, eval::runMethod(told, "uwb-shkf", 1));
+  const auto run = eval::runMethod(dropped, "uwb-shkf", 1);
+  std::printf("[ NLOS P   ] rmse_2d: not told %.3f m, p = 0.9 %.3f m, p = 0.99 (dropped) %.3f m\n",
+              blind, informed, rmse(dropped, run));
+  EXPECT_LT(informed, 0.8 * blind);
+  const long count = run.statistics.rejected.count("nlos_probability")
+                         ? run.statistics.rejected.at("nlos_probability")
+                         : 0;
+  EXPECT_GT(count, marked * 9 / 10);
+  EXPECT_LE(count, marked);
 }
