@@ -47,6 +47,7 @@ bool Dataset::provides(const std::string& need) const {
     if (need == "ranges" && std::holds_alternative<uwb::Range>(e)) return true;
     if (need == "odometry" && std::holds_alternative<loc::OdometryIncrement>(e)) return true;
     if (need == "scans" && std::holds_alternative<loc::LaserScan>(e)) return true;
+    if (need == "imu" && std::holds_alternative<loc::ImuSample>(e)) return true;
   }
   return false;
 }

@@ -268,6 +268,7 @@ void readMotionSensors(const IniFile& ini, Scenario& s) {
   readDouble(ini, "imu", "gyro_sigma", s.imu.gyro_sigma);
   readDouble(ini, "imu", "accel_bias_walk", s.imu.accel_bias_walk);
   readDouble(ini, "imu", "gyro_bias_walk", s.imu.gyro_bias_walk);
+  readDouble(ini, "imu", "vibration", s.imu.vibration);
 }
 
 // [lidar]: a preset and its overrides.

@@ -175,24 +175,33 @@ void simulateOdometry(const Scenario& s, const TrajectorySampler& robot, Rng& rn
   }
 }
 
-// IMU: body-frame acceleration and yaw rate from the true motion, white noise and bias walk.
+// IMU: body-frame acceleration and yaw rate from the true motion, white noise, bias walk and
+// vibration while driving. Each sample is the mean over the interval it closes, as an IMU's
+// integrated (delta-velocity, delta-angle) output is: the path's speed changes in steps (it
+// turns in place between straight legs), and a point derivative would miss the steps.
 void simulateImu(const Scenario& s, const TrajectorySampler& robot, Rng& rng_imu, Simulation& sim) {
   const double t0 = s.start_time;
   std::normal_distribution<double> n01(0.0, 1.0);
   const double dt = 1.0 / s.imu.rate;
-  const double h = 1e-3;  // differentiation step [s]
+  const double h = 1e-4;  // differentiation step [s]
+  auto velocity = [&](double t) {
+    return Eigen::Vector2d((robot.pose(t + h).head<2>() - robot.pose(std::max(t - h, 0.0)).head<2>()) /
+                           (t - h < 0.0 ? h : 2.0 * h));
+  };
   Eigen::Vector2d accel_bias = Eigen::Vector2d::Zero();
   double gyro_bias = 0.0;
   const auto n = static_cast<long>(std::floor(s.duration * s.imu.rate + 1e-9));
   for (long k = 0; k <= n; ++k) {
     const double t = k * dt;
-    const Eigen::Vector3d pm = robot.pose(std::max(t - h, 0.0)), p0 = robot.pose(t),
-                          pp = robot.pose(t + h);
-    const double span = t - h < 0.0 ? h : 2.0 * h;
+    const double t_prev = std::max(t - dt, 0.0);
+    const Eigen::Vector3d p0 = robot.pose(t_prev), p1 = robot.pose(t);
+    const double span = t - t_prev;
+    const Eigen::Vector2d v1 = velocity(t);
     const Eigen::Vector2d acc_world =
-        (pp.head<2>() - 2.0 * p0.head<2>() + robot.pose(t - h).head<2>()) / (h * h);
+        span > 0.0 ? Eigen::Vector2d((v1 - velocity(t_prev)) / span) : Eigen::Vector2d::Zero();
+    // The body frame at the interval's start (the mechanisation rotates by the heading there).
     const Eigen::Vector2d acc_body = rotation(p0.z()).transpose() * acc_world;
-    const double yaw_rate = loc::wrapAngle(pp.z() - pm.z()) / span;
+    const double yaw_rate = span > 0.0 ? loc::wrapAngle(p1.z() - p0.z()) / span : 0.0;
     accel_bias +=
         s.imu.accel_bias_walk * std::sqrt(dt) * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
     gyro_bias += s.imu.gyro_bias_walk * std::sqrt(dt) * n01(rng_imu);
@@ -201,6 +210,8 @@ void simulateImu(const Scenario& s, const TrajectorySampler& robot, Rng& rng_imu
     imu.accel =
         acc_body + accel_bias + s.imu.accel_sigma * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
     imu.gyro_z = yaw_rate + gyro_bias + s.imu.gyro_sigma * n01(rng_imu);
+    if (s.imu.vibration > 0.0 && v1.norm() > 0.01)
+      imu.accel += s.imu.vibration * Eigen::Vector2d(n01(rng_imu), n01(rng_imu));
     sim.events.emplace_back(imu);
   }
 }

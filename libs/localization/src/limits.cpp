@@ -94,6 +94,14 @@ const std::vector<ParamLimit>& paramLimits() {
       {"c1", 0, 100, false, "[std]"},
       {"beta", 0, 1, false, "a mixing weight"},
       {"p_reject", 0, 1, false, "a probability"},
+      {"accel_noise", 0, 1e3, true, "[m/s^2/sqrt(Hz)]"},
+      {"gyro_noise", 0, 1e3, true, "[rad/s/sqrt(Hz)]"},
+      {"accel_bias_walk", 0, 1e3, false, ""},
+      {"gyro_bias_walk", 0, 1e3, false, ""},
+      {"still_window", 0, 60, true, "[s]: the detector keeps the window's samples"},
+      {"still_acc", 0, 1e3, false, "[m/s^2]"},
+      {"still_gyro", 0, 1e3, false, "[rad/s]"},
+      {"still_rate", 0, 1e3, false, "[rad/s]"},
       {"fading_max", 1, 1e6, false, "a covariance factor (1: no fading)"},
   };
   return limits;

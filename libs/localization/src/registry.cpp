@@ -7,6 +7,7 @@
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
+#include "uwbloc/localization/methods/uwb_ins.hpp"
 #include "uwbloc/localization/methods/uwb_shkf.hpp"
 #include "uwbloc/localization/methods/federated_ekf.hpp"
 #include "uwbloc/localization/methods/point_filters.hpp"
@@ -94,6 +95,11 @@ Registry makeBuiltin() {
       "federated-ekf",
       "UWB only: federated EKF, local EKFs on anchor groups fused by information (fusion-reset)",
       {"ranges"}));
+  r.add(makeMethod<UwbIns, UwbInsParams>(
+      "uwb-ins",
+      "UWB/INS: EKF over the planar strapdown (position, velocity, heading, biases), updated "
+      "by each range (mode=fix: each fix), ZUPT and ZARU",
+      {"ranges", "imu"}));
   r.add(makeMethod<OdometryEstimator, OdometryParams>(
       "odom", "Odometry only: dead reckoning from the first ground-truth pose", {"odometry"}));
   addLidarMethods(r);

@@ -59,6 +59,9 @@ struct ImuSimSpec {
   double gyro_sigma = 0.005;       ///< white noise [rad/s]
   double accel_bias_walk = 0.002;  ///< bias random walk [m/s^2 per sqrt(s)]
   double gyro_bias_walk = 0.0002;  ///< bias random walk [rad/s per sqrt(s)]
+  /// Accelerometer vibration while the robot drives (speed above 1 cm/s) [m/s^2 std]: what a
+  /// stationarity detector tells rest from constant velocity by.
+  double vibration = 0.0;
 };
 
 struct LidarSimSpec {

@@ -1,0 +1,233 @@
+#include "uwbloc/localization/methods/uwb_ins.hpp"
+
+#include <cmath>
+
+#include "uwbloc/localization/motion_models.hpp"
+
+namespace uwbloc::loc {
+
+namespace {
+
+using Vec8 = Eigen::Matrix<double, 8, 1>;
+
+Vec8 pack(const InsState& s) {
+  Vec8 x;
+  x << s.p, s.v, s.yaw, s.gyro_bias, s.accel_bias;
+  return x;
+}
+
+InsState unpack(const Vec8& x) {
+  InsState s;
+  s.p = x.segment<2>(0);
+  s.v = x.segment<2>(2);
+  s.yaw = wrapAngle(x(4));
+  s.gyro_bias = x(5);
+  s.accel_bias = x.segment<2>(6);
+  return s;
+}
+
+Eigen::Matrix2d rotation(double yaw) {
+  Eigen::Matrix2d r;
+  r << std::cos(yaw), -std::sin(yaw), std::sin(yaw), std::cos(yaw);
+  return r;
+}
+
+Eigen::Matrix2d rotationDerivative(double yaw) {
+  Eigen::Matrix2d r;
+  r << -std::sin(yaw), -std::cos(yaw), std::cos(yaw), -std::sin(yaw);
+  return r;
+}
+
+constexpr double kOutputPeriod = 0.1;  ///< [s] between estimates from the IMU alone
+
+}  // namespace
+
+UwbIns::UwbIns(const UwbInsParams& params, const EstimatorContext& context)
+    : UwbEstimator(params.front, context.anchors),
+      params_(params),
+      start_pose_(context.initial_pose),
+      epochs_(params.epoch_window),
+      detector_(params.still_window, params.still_acc, params.still_gyro, params.still_rate) {}
+
+void UwbIns::reset() {
+  initialised_ = false;
+  gated_in_a_row_ = 0;
+  epochs_ = EpochBuffer(params_.epoch_window);
+}
+
+PoseEstimate UwbIns::output() const {
+  PoseEstimate est;
+  est.t = t_;
+  est.pose << s_.p, s_.yaw;
+  est.covariance.setZero();
+  est.covariance.topLeftCorner<2, 2>() = p_.topLeftCorner<2, 2>();
+  est.covariance(2, 2) = p_(4, 4);
+  est.covariance(0, 2) = est.covariance(2, 0) = p_(0, 4);
+  est.covariance(1, 2) = est.covariance(2, 1) = p_(1, 4);
+  est.heading_valid = p_(4, 4) < std::pow(10.0 * M_PI / 180.0, 2);
+  return est;
+}
+
+bool UwbIns::initialise(const AcceptedRange& r) {
+  tag_on_robot_ = r.measurement.tag_on_robot;
+  p_.setZero();
+  if (start_pose_) {
+    s_ = InsState{};
+    s_.p = start_pose_->head<2>();
+    s_.yaw = start_pose_->z();
+    p_.diagonal() << 0.25, 0.25, 1.0, 1.0, std::pow(5.0 * M_PI / 180.0, 2), 1e-4, 2.5e-3, 2.5e-3;
+    start_pose_.reset();
+    t_ = r.measurement.t;
+  } else {
+    auto epoch = epochs_.add(r);
+    if (!epoch) return false;
+    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
+    if (!fix.ok()) {
+      countRejection(std::string("init_") + uwb::toString(fix.status));
+      return false;
+    }
+    if (fix.residual_norm > params_.init_residual) {
+      countRejection("init_inconsistent_fix");
+      return false;
+    }
+    s_ = InsState{};
+    s_.p = fix.position;  // the lever arm is unknown until the heading is
+    p_.topLeftCorner<2, 2>() = fix.covariance;
+    p_.topLeftCorner<2, 2>().diagonal().array() += tag_on_robot_.head<2>().squaredNorm();
+    p_.diagonal().tail<6>() << 1.0, 1.0, M_PI * M_PI, 1e-4, 2.5e-3, 2.5e-3;
+    t_ = epochTime(*epoch);
+  }
+  epochs_ = EpochBuffer(params_.epoch_window);
+  initialised_ = true;
+  gated_in_a_row_ = 0;
+  return true;
+}
+
+void UwbIns::correct(const Vec8& dx) { s_ = unpack(pack(s_) + dx); }
+
+template <int M>
+void UwbIns::pseudoUpdate(const Eigen::Matrix<double, M, 1>& y,
+                          const Eigen::Matrix<double, M, 8>& h,
+                          const Eigen::Matrix<double, M, M>& r) {
+  const auto inn = kalman::innovate<8, M>(p_, y, h, r);
+  Vec8 dx = Vec8::Zero();
+  kalman::josephUpdate<8, M>(dx, p_, inn, h, r);
+  correct(dx);
+}
+
+std::optional<PoseEstimate> UwbIns::onImu(const ImuSample& imu) {
+  detector_.add(imu);
+  if (!initialised_) return std::nullopt;
+  const double dt = imu.t - t_;
+  if (!(dt > 0.0)) {
+    if (dt < 0.0) countRejection("imu_time_backwards");
+    return std::nullopt;
+  }
+  Eigen::Matrix<double, 8, 8> f;
+  s_ = mechanise(s_, imu, dt, &f);
+  Eigen::Matrix<double, 8, 8> q = Eigen::Matrix<double, 8, 8>::Zero();
+  const double qa = params_.accel_noise * params_.accel_noise;
+  q.block<2, 2>(0, 0).diagonal().setConstant(qa * dt * dt * dt / 3.0);
+  q.block<2, 2>(0, 2).diagonal().setConstant(qa * dt * dt / 2.0);
+  q.block<2, 2>(2, 0).diagonal().setConstant(qa * dt * dt / 2.0);
+  q.block<2, 2>(2, 2).diagonal().setConstant(qa * dt);
+  q(4, 4) = params_.gyro_noise * params_.gyro_noise * dt;
+  q(5, 5) = params_.gyro_bias_walk * params_.gyro_bias_walk * dt;
+  q(6, 6) = q(7, 7) = params_.accel_bias_walk * params_.accel_bias_walk * dt;
+  p_ = f * p_ * f.transpose() + q;
+  const double last = t_;
+  t_ = imu.t;
+  if (params_.zupt && detector_.still()) {
+    Eigen::Matrix<double, 2, 8> h = Eigen::Matrix<double, 2, 8>::Zero();
+    h(0, 2) = h(1, 3) = 1.0;
+    pseudoUpdate<2>(-s_.v, h, Eigen::Matrix2d::Identity() * 1e-4);  // v = 0 within 1 cm/s
+    ++stats_.events["zupt"];
+    if (params_.zaru && detector_.notTurning(s_.gyro_bias)) {
+      Eigen::Matrix<double, 1, 8> hz = Eigen::Matrix<double, 1, 8>::Zero();
+      hz(0, 5) = 1.0;  // the rate measured at rest is the bias
+      const double rv = params_.still_gyro * params_.still_gyro * 0.01;
+      pseudoUpdate<1>(Eigen::Matrix<double, 1, 1>(detector_.meanRate() - s_.gyro_bias), hz,
+                      Eigen::Matrix<double, 1, 1>(rv));
+      ++stats_.events["zaru"];
+    }
+  }
+  // An estimate every kOutputPeriod from the INS alone (through UWB gaps).
+  if (std::floor(t_ / kOutputPeriod) != std::floor(last / kOutputPeriod)) return output();
+  return std::nullopt;
+}
+
+bool UwbIns::updateRange(const AcceptedRange& r) {
+  const Eigen::Matrix2d rot = rotation(s_.yaw);
+  const Eigen::Vector2d lever = r.measurement.tag_on_robot.head<2>();
+  const Eigen::Vector3d tag((s_.p + rot * lever).x(), (s_.p + rot * lever).y(),
+                            r.measurement.tag_on_robot.z());
+  const Eigen::Vector3d diff = tag - r.anchor;
+  const double h = std::max(diff.norm(), 1e-6);
+  Eigen::Matrix<double, 1, 8> hj = Eigen::Matrix<double, 1, 8>::Zero();
+  hj(0, 0) = diff.x() / h;
+  hj(0, 1) = diff.y() / h;
+  hj(0, 4) = diff.head<2>().dot(rotationDerivative(s_.yaw) * lever) / h;
+  const double sigma = params_.front.sigmaValue();
+  const Eigen::Matrix<double, 1, 1> rv(sigma * sigma);
+  const auto inn =
+      kalman::innovate<8, 1>(p_, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);
+  if (!kalman::inGate(inn, uwb::ChiSquareGate(params_.gate))) {
+    countRejection(uwb::RejectReason::kInnovation, r.measurement.anchor_id);
+    return false;
+  }
+  Vec8 dx = Vec8::Zero();
+  kalman::josephUpdate<8, 1>(dx, p_, inn, hj, rv);
+  correct(dx);
+  return true;
+}
+
+bool UwbIns::updateFix(const uwb::Fix& fix, const Eigen::Vector3d& tag_on_robot) {
+  const Eigen::Vector2d lever = tag_on_robot.head<2>();
+  Eigen::Matrix<double, 2, 8> h = Eigen::Matrix<double, 2, 8>::Zero();
+  h.leftCols<2>().setIdentity();
+  h.col(4) = rotationDerivative(s_.yaw) * lever;
+  const Eigen::Vector2d y = fix.position - (s_.p + rotation(s_.yaw) * lever);
+  const auto inn = kalman::innovate<8, 2>(p_, y, h, fix.covariance);
+  // The 1-dof gate carried to 2 dof at the same tail probability (9 -> 11.8 for 3 sigma).
+  const double threshold = params_.gate * 11.83 / 9.0;
+  if (!kalman::inGate(inn, uwb::ChiSquareGate(threshold))) {
+    countRejection("fix_innovation_gate");
+    return false;
+  }
+  Vec8 dx = Vec8::Zero();
+  kalman::josephUpdate<8, 2>(dx, p_, inn, h, fix.covariance);
+  correct(dx);
+  return true;
+}
+
+std::optional<PoseEstimate> UwbIns::doProcess(const Event& event) {
+  if (const auto* imu = std::get_if<ImuSample>(&event)) return onImu(*imu);
+  const auto accepted = acceptRange(event);
+  if (!accepted) return std::nullopt;
+  if (!initialised_) {
+    if (!initialise(*accepted)) return std::nullopt;
+    return output();
+  }
+  bool used = false;
+  if (params_.mode == InsMode::kRanges) {
+    used = updateRange(*accepted);
+  } else {
+    auto epoch = epochs_.add(*accepted);
+    if (!epoch) return std::nullopt;
+    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
+    if (!fix.ok()) {
+      countRejection(std::string("epoch_") + uwb::toString(fix.status));
+      return std::nullopt;
+    }
+    used = updateFix(fix, accepted->measurement.tag_on_robot);
+  }
+  gated_in_a_row_ = used ? 0 : gated_in_a_row_ + 1;
+  if (gated_in_a_row_ >= params_.max_gated) {
+    ++stats_.resets;
+    reset();
+    return std::nullopt;
+  }
+  return output();
+}
+
+}  // namespace uwbloc::loc
