@@ -23,7 +23,7 @@ using namespace uwbloc;
 
 namespace {
 
-// The simulated PF-IBAS room (seed 1): UWB with NLOS, a LiDAR, odometry and a map, so that every
+// The simulated PF-IBAS room (seed 1): UWB with NLOS, a LiDAR, odometry, an IMU and a map, so that every
 // registered method has what it needs. One dataset for the whole binary.
 const data::Dataset& room() {
   static const data::Dataset ds = test::simulatedScenario("pfibas_room", 1);
@@ -41,6 +41,7 @@ const std::map<std::string, double> kRoomBound = {
     {"uwb-ckf", 0.29},       {"uwb-hinf-ckf", 0.29},
     {"uwb-iahckf", 0.29},    {"uwb-srukf", 0.29},
     {"federated-ekf", 0.30}, {"uwb-shkf", 0.29},
+    {"uwb-ins", 0.28},
     {"odom", 0.05},          {"lidar-icp", 0.17},
     {"lidar-mcl", 0.03},     {"fused-naive", 0.04},
     {"fused-pf", 0.03},      {"pf-sir", 0.03},
@@ -56,10 +57,10 @@ std::string testName(const ::testing::TestParamInfo<std::string>& info) {
 }
 
 // The stream with bad measurements mixed in: NaN, zero, negative and absurd ranges, an unknown
-// anchor, time going back, and NaN odometry.
+// anchor, time going back, NaN odometry and NaN IMU samples.
 std::vector<loc::Event> corrupted(const std::vector<loc::Event>& events) {
   std::vector<loc::Event> bad;
-  int i = 0, j = 0;
+  int i = 0, j = 0, k = 0;
   for (const auto& e : events) {
     bad.push_back(e);
     if (const auto* r = std::get_if<uwb::Range>(&e); r && ++i % 10 == 0) {
@@ -71,6 +72,11 @@ std::vector<loc::Event> corrupted(const std::vector<loc::Event>& events) {
       if (kind == 3) x.range = 1e6;
       if (kind == 4) x.anchor_id = 99;
       if (kind == 5) x.t -= 5.0;
+      bad.emplace_back(x);
+    }
+    if (const auto* m = std::get_if<loc::ImuSample>(&e); m && ++k % 50 == 0) {
+      loc::ImuSample x = *m;
+      x.accel.y() = std::numeric_limits<double>::quiet_NaN();
       bad.emplace_back(x);
     }
     if (const auto* o = std::get_if<loc::OdometryIncrement>(&e); o && ++j % 50 == 0) {
@@ -123,6 +129,9 @@ TEST_P(EveryMethod, RejectsBadMeasurementsAndNeverEmitsNaN) {
                                "unknown_anchor", "time_backwards"}) {
       EXPECT_GT(rej.count(reason), 0u) << m << " did not count " << reason;
     }
+  }
+  if (needs(m, "imu")) {
+    EXPECT_GT(rej.count("non_finite_imu"), 0u) << m;
   }
   if (needs(m, "odometry") && m != "lidar-icp" && m != "graph-uwb-odom") {
     EXPECT_GT(rej.count("non_finite_odometry"), 0u) << m;

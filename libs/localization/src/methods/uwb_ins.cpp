@@ -116,6 +116,10 @@ void UwbIns::pseudoUpdate(const Eigen::Matrix<double, M, 1>& y,
 }
 
 std::optional<PoseEstimate> UwbIns::onImu(const ImuSample& imu) {
+  if (!imu.accel.allFinite() || !std::isfinite(imu.gyro_z) || !std::isfinite(imu.t)) {
+    countRejection("non_finite_imu");
+    return std::nullopt;
+  }
   detector_.add(imu);
   if (!initialised_) return std::nullopt;
   const double dt = imu.t - t_;
