@@ -147,4 +147,11 @@ TEST(Ins, FusionOnTheAgvRoom) {
   ASSERT_TRUE(ins.statistics.events.count("zupt"));
   EXPECT_NEAR(ins.statistics.events.at("zupt"), 942, 100);
   EXPECT_EQ(ins.statistics.events.count("zaru"), 0u);  // it never stops turning when still
+  // The cubature variant (the points through the mechanisation) tracks as the EKF does.
+  const auto ckf = eval::runMethod(ds, "uwb-ins-ckf", 1);
+  const double rmse_ckf = eval::computeMetrics(eval::associate(ckf.trajectory, ds.ground_truth),
+                                               ckf.trajectory, ds.ground_truth)
+                              .rmse_2d;
+  std::printf("[ INS      ] rmse_2d uwb-ins-ckf %.3f m\n", rmse_ckf);
+  EXPECT_NEAR(rmse_ckf, m_ins.rmse_2d, 0.02);
 }

@@ -100,6 +100,21 @@ Registry makeBuiltin() {
       "UWB/INS: EKF over the planar strapdown (position, velocity, heading, biases), updated "
       "by each range (mode=fix: each fix), ZUPT and ZARU",
       {"ranges", "imu"}));
+  r.add(withDefault(
+      makeMethod<UwbIns, UwbInsParams>(
+          "uwb-ins-ckf", "UWB/INS: uwb-ins with the cubature rule (the H-infinity paper's CKF)",
+          {"ranges", "imu"}),
+      "filter", "ckf"));
+  r.add(withDefault(
+      withDefault(withDefault(makeMethod<UwbIns, UwbInsParams>(
+                                  "uwb-ins-ickf",
+                                  "UWB/INS: the H-infinity paper's ICKF: uwb-ins-ckf with the "
+                                  "H-infinity update and the IGG-III factor above the 0.24 m "
+                                  "NLOS threshold",
+                                  {"ranges", "imu"}),
+                              "filter", "ckf"),
+                  "hinf", "5"),
+      "robust", "1"));
   r.add(makeMethod<OdometryEstimator, OdometryParams>(
       "odom", "Odometry only: dead reckoning from the first ground-truth pose", {"odometry"}));
   addLidarMethods(r);

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "uwbloc/localization/kalman/cubature.hpp"
+#include "uwbloc/localization/methods/point_filters.hpp"
 #include "uwbloc/localization/motion_models.hpp"
 
 namespace uwbloc::loc {
@@ -127,8 +129,6 @@ std::optional<PoseEstimate> UwbIns::onImu(const ImuSample& imu) {
     if (dt < 0.0) countRejection("imu_time_backwards");
     return std::nullopt;
   }
-  Eigen::Matrix<double, 8, 8> f;
-  s_ = mechanise(s_, imu, dt, &f);
   Eigen::Matrix<double, 8, 8> q = Eigen::Matrix<double, 8, 8>::Zero();
   const double qa = params_.accel_noise * params_.accel_noise;
   q.block<2, 2>(0, 0).diagonal().setConstant(qa * dt * dt * dt / 3.0);
@@ -138,7 +138,23 @@ std::optional<PoseEstimate> UwbIns::onImu(const ImuSample& imu) {
   q(4, 4) = params_.gyro_noise * params_.gyro_noise * dt;
   q(5, 5) = params_.gyro_bias_walk * params_.gyro_bias_walk * dt;
   q(6, 6) = q(7, 7) = params_.accel_bias_walk * params_.accel_bias_walk * dt;
-  p_ = f * p_ * f.transpose() + q;
+  if (params_.filter == InsFilter::kCkf) {
+    // The points through the mechanisation, the heading kept unwrapped across them.
+    Vec8 x = pack(s_);
+    kalman::cubaturePredict<8>(
+        x, p_,
+        [&](const Vec8& pt) {
+          Vec8 out = pack(mechanise(unpack(pt), imu, dt));
+          out(4) = pt(4) + (imu.gyro_z - pt(5)) * dt;
+          return out;
+        },
+        q);
+    s_ = unpack(x);
+  } else {
+    Eigen::Matrix<double, 8, 8> f;
+    s_ = mechanise(s_, imu, dt, &f);
+    p_ = f * p_ * f.transpose() + q;
+  }
   const double last = t_;
   t_ = imu.t;
   if (params_.zupt && detector_.still()) {
@@ -160,7 +176,48 @@ std::optional<PoseEstimate> UwbIns::onImu(const ImuSample& imu) {
   return std::nullopt;
 }
 
+bool UwbIns::updateRangeCubature(const AcceptedRange& r) {
+  const Eigen::Vector2d lever = r.measurement.tag_on_robot.head<2>();
+  const Vec8 x0 = pack(s_);
+  const auto points = kalman::cubaturePoints<8>(x0, p_);
+  const auto m = kalman::propagate<8, 1>(points, x0, [&](const Vec8& x) {
+    const Eigen::Vector2d tag = x.head<2>() + rotation(x(4)) * lever;
+    const Eigen::Vector3d d(tag.x() - r.anchor.x(), tag.y() - r.anchor.y(),
+                            r.measurement.tag_on_robot.z() - r.anchor.z());
+    return Eigen::Matrix<double, 1, 1>(std::max(d.norm(), 1e-6));
+  });
+  const double sigma = params_.front.sigmaValue();
+  double rv = sigma * sigma;
+  const double y = r.measurement.range - m.z(0);
+  const double v = std::abs(y) / std::sqrt(m.pzz(0, 0) + rv);
+  if (params_.robust && std::abs(y) > params_.nlos_threshold) {
+    const double factor = iggIIIFactor(v, params_.k0, params_.k1);
+    if (!std::isfinite(factor)) {
+      countRejection(uwb::RejectReason::kInnovation, r.measurement.anchor_id);
+      return false;
+    }
+    if (factor > 1.0) ++stats_.events["robust_factor_inflated"];
+    rv *= factor;
+  } else if (!uwb::ChiSquareGate(params_.gate).acceptSquared(v * v)) {
+    countRejection(uwb::RejectReason::kInnovation, r.measurement.anchor_id);
+    return false;
+  }
+  Vec8 x = x0;
+  const Eigen::Matrix<double, 1, 1> ym(y), rm(rv);
+  if (params_.hinf > 0.0) {
+    Eigen::Matrix<double, 8, 8> position = Eigen::Matrix<double, 8, 8>::Zero();
+    position(0, 0) = position(1, 1) = 1.0;
+    if (kalman::hinfCubatureUpdate<8, 1>(x, p_, m, ym, rm, params_.hinf, position) == 0.0)
+      ++stats_.events["hinf_bound_infeasible"];
+  } else {
+    kalman::cubatureUpdate<8, 1>(x, p_, m, ym, rm);
+  }
+  s_ = unpack(x);
+  return true;
+}
+
 bool UwbIns::updateRange(const AcceptedRange& r) {
+  if (params_.filter == InsFilter::kCkf) return updateRangeCubature(r);
   const Eigen::Matrix2d rot = rotation(s_.yaw);
   const Eigen::Vector2d lever = r.measurement.tag_on_robot.head<2>();
   const Eigen::Vector3d tag((s_.p + rot * lever).x(), (s_.p + rot * lever).y(),

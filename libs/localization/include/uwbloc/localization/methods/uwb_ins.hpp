@@ -6,6 +6,11 @@
 //     tag's lever arm l, behind uwb-ekf's chi-square gate;
 //   - mode=fix (loose, the Sage-Husa paper's): by each epoch's Gauss-Newton fix of the tag,
 //     H = [I R'(ψ) l ...], R the fix's covariance, behind a 2-dof gate;
+//   - filter=ckf: the same with the cubature rule (kalman/cubature.hpp): the points through the
+//     mechanisation for the time update and through the range (or fix) model for the update;
+//     `hinf` makes the update the H∞ CKF's and `robust` adds the IGG-III factor above the NLOS
+//     threshold (point_filters.hpp): uwb-ins-ckf and uwb-ins-ickf, the H∞ paper's CKF and ICKF
+//     in its UWB/INS set-up (without the Sage-Husa statistics of uwb-iahckf);
 //   - by ZUPT (v = 0) and ZARU (the gyro bias equals the mean rate) pseudo-measurements
 //     whenever the stationarity detector says so (ins.hpp), each with its own small noise.
 // It starts at the first consistent fix (at the start pose when the run has one), with the start
@@ -27,6 +32,10 @@ enum class InsMode { kRanges, kFix };
 constexpr std::array<EnumName<InsMode>, 2> enumNames(InsMode) {
   return {{{InsMode::kRanges, "ranges"}, {InsMode::kFix, "fix"}}};
 }
+enum class InsFilter { kEkf, kCkf };
+constexpr std::array<EnumName<InsFilter>, 2> enumNames(InsFilter) {
+  return {{{InsFilter::kEkf, "ekf"}, {InsFilter::kCkf, "ckf"}}};
+}
 
 struct UwbInsParams {
   RangeFrontEndParams front;
@@ -45,6 +54,11 @@ struct UwbInsParams {
   double still_acc = 0.1;           ///< std of |f| below which the IMU is still [m/s^2]
   double still_gyro = 0.02;         ///< std of the rate below which it is still [rad/s]
   double still_rate = 0.02;         ///< |mean rate - bias| below which it is not turning [rad/s]
+  InsFilter filter = InsFilter::kEkf;  ///< EKF, or cubature (points through the mechanisation)
+  double hinf = 0.0;                ///< ckf: the H∞ bound on the position (point_filters.hpp)
+  bool robust = false;              ///< ckf, ranges: IGG-III factor above nlos_threshold
+  double k0 = 2.0, k1 = 5.0;        ///< IGG-III thresholds [std]
+  double nlos_threshold = 0.24;     ///< [m]
 
   template <class V>
   void visit(V&& v) {
@@ -64,6 +78,12 @@ struct UwbInsParams {
     v("still_acc", still_acc, "std of |accel| under which the IMU counts as still [m/s^2]");
     v("still_gyro", still_gyro, "std of the yaw rate under which it counts as still [rad/s]");
     v("still_rate", still_rate, "largest |mean rate - bias| that counts as not turning [rad/s]");
+    v("filter", filter, "ekf: extended KF; ckf: cubature KF (the H-infinity paper's family)");
+    v("hinf", hinf, "ckf: H-infinity bound over the smallest feasible (0 = plain CKF)");
+    v("robust", robust, "ckf with ranges: IGG-III factor on R beyond nlos_threshold");
+    v("k0", k0, "IGG-III: normalised innovations up to k0 keep R");
+    v("k1", k1, "IGG-III: beyond k1 the range is dropped");
+    v("nlos_threshold", nlos_threshold, "innovations within this are never down-weighted [m]");
   }
 };
 
@@ -81,6 +101,7 @@ class UwbIns : public UwbEstimator {
   std::optional<PoseEstimate> onImu(const ImuSample& imu);
   bool initialise(const AcceptedRange& r);
   bool updateRange(const AcceptedRange& r);
+  bool updateRangeCubature(const AcceptedRange& r);
   bool updateFix(const uwb::Fix& fix, const Eigen::Vector3d& tag_on_robot);
   /// A linear pseudo-measurement z = H x + v (ZUPT, ZARU), without a gate.
   template <int M>
