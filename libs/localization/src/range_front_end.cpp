@@ -125,4 +125,19 @@ double epochTime(const std::vector<AcceptedRange>& epoch) {
   return t;
 }
 
+std::optional<uwb::Fix> consistentFix(const std::vector<AcceptedRange>& epoch, double sigma,
+                                      double max_residual, EstimatorStatistics& stats,
+                                      const std::string& prefix) {
+  const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(epoch, sigma));
+  if (!fix.ok()) {
+    countRejection(stats, prefix + uwb::toString(fix.status));
+    return std::nullopt;
+  }
+  if (fix.residual_norm > max_residual) {
+    countRejection(stats, "init_inconsistent_fix");
+    return std::nullopt;
+  }
+  return fix;
+}
+
 }  // namespace uwbloc::loc

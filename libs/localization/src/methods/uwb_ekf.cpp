@@ -66,16 +66,10 @@ bool UwbEkf::initialise(const AcceptedRange& r) {
   } else {
     auto epoch = init_epochs_.add(r);
     if (!epoch) return false;
-    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
-    if (!fix.ok()) {
-      countRejection(std::string("init_") + uwb::toString(fix.status));
-      return false;
-    }
-    if (fix.residual_norm > params_.init_residual) {
-      countRejection("init_inconsistent_fix");  // some range of the epoch is wrong
-      return false;
-    }
-    kalman::initialiseFromFix(fix, x_, p_);
+    const auto fix =
+        consistentFix(*epoch, params_.front.sigmaValue(), params_.init_residual, stats_);
+    if (!fix) return false;
+    kalman::initialiseFromFix(*fix, x_, p_);
     t_ = epochTime(*epoch);
   }
   quarantine_.clear();

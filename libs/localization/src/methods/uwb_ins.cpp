@@ -1,6 +1,7 @@
 #include "uwbloc/localization/methods/uwb_ins.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include "uwbloc/localization/kalman/cubature.hpp"
 #include "uwbloc/localization/methods/point_filters.hpp"
@@ -83,18 +84,12 @@ bool UwbIns::initialise(const AcceptedRange& r) {
   } else {
     auto epoch = epochs_.add(r);
     if (!epoch) return false;
-    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
-    if (!fix.ok()) {
-      countRejection(std::string("init_") + uwb::toString(fix.status));
-      return false;
-    }
-    if (fix.residual_norm > params_.init_residual) {
-      countRejection("init_inconsistent_fix");
-      return false;
-    }
+    const auto fix =
+        consistentFix(*epoch, params_.front.sigmaValue(), params_.init_residual, stats_);
+    if (!fix) return false;
     s_ = InsState{};
-    s_.p = fix.position;  // the lever arm is unknown until the heading is
-    p_.topLeftCorner<2, 2>() = fix.covariance;
+    s_.p = fix->position;  // the lever arm is unknown until the heading is
+    p_.topLeftCorner<2, 2>() = fix->covariance;
     p_.topLeftCorner<2, 2>().diagonal().array() += tag_on_robot_.head<2>().squaredNorm();
     p_.diagonal().tail<6>() << 1.0, 1.0, M_PI * M_PI, 1e-4, 2.5e-3, 2.5e-3;
     t_ = epochTime(*epoch);
@@ -275,12 +270,11 @@ std::optional<PoseEstimate> UwbIns::doProcess(const Event& event) {
   } else {
     auto epoch = epochs_.add(*accepted);
     if (!epoch) return std::nullopt;
-    const uwb::Fix fix = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
-    if (!fix.ok()) {
-      countRejection(std::string("epoch_") + uwb::toString(fix.status));
-      return std::nullopt;
-    }
-    used = updateFix(fix, accepted->measurement.tag_on_robot);
+    // Every solvable epoch is used (the gate judges it), however large its residual.
+    const auto fix = consistentFix(*epoch, params_.front.sigmaValue(),
+                                   std::numeric_limits<double>::infinity(), stats_, "epoch_");
+    if (!fix) return std::nullopt;
+    used = updateFix(*fix, accepted->measurement.tag_on_robot);
   }
   gated_in_a_row_ = used ? 0 : gated_in_a_row_ + 1;
   if (gated_in_a_row_ >= params_.max_gated) {

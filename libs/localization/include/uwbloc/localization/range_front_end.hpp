@@ -134,4 +134,12 @@ std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, 
 /// Latest timestamp in an epoch.
 double epochTime(const std::vector<AcceptedRange>& epoch);
 
+/// The Gauss-Newton fix a tracking filter starts from: the epoch's, when it solves and its
+/// residual norm is within `max_residual` (otherwise some range of the epoch is wrong).
+/// Nothing when not; the reason is counted in `stats` as `prefix` + the solver's status, or as
+/// init_inconsistent_fix.
+std::optional<uwb::Fix> consistentFix(const std::vector<AcceptedRange>& epoch, double sigma,
+                                      double max_residual, EstimatorStatistics& stats,
+                                      const std::string& prefix = "init_");
+
 }  // namespace uwbloc::loc
