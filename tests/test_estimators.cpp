@@ -479,7 +479,8 @@ uwb::Range rangeAt(double t, int anchor, double range) {
 // a range of 5.5 m to the anchor at (3, 4) at the start time (no motion, Q = 0) predicts 5,
 // H = [-0.6 -0.8 0 0], e = 0.5. First statistic (d = 1): C_exp = C_win = e^2 = 0.25, beta 0,
 // fading 1, R = C - H P H^T = 0.25 - 0.25 = 0 -> the floor (sigma / 2)^2 = 0.0025. Then
-// S = 0.2525, K = P H^T / S and the tag moves by K e = (-0.297030, -0.396040).
+// S = 0.2525, K = P H^T / S and the tag moves by K e = (-0.297030, -0.396040). With bias=1 the
+// anchor's bias becomes d_0 e = 0.5.
 TEST(Shkf, OneStepByHand) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
@@ -492,6 +493,11 @@ TEST(Shkf, OneStepByHand) {
   EXPECT_NEAR(out->pose.y(), 0.25 * -0.8 * 0.5 / 0.2525, 1e-9);
   EXPECT_EQ(est->statistics().events.at("r_kept_positive"), 1);
   EXPECT_NEAR(est->statistics().estimated_noise.at(2).sigma, 0.05, 1e-12);
+  // With the bias estimated, the first weight d_0 = 1 takes the whole innovation as the bias.
+  auto biased = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,bias=1", ctx);
+  biased->process(rangeAt(10.0, 1, 3.0));
+  biased->process(rangeAt(10.0, 2, 5.5));
+  EXPECT_NEAR(biased->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
 }
 
 // uwb-shkf takes a per-range NLOS probability: with one anchor's ranges 0.5 m long (inside the
@@ -527,4 +533,25 @@ TEST(Shkf, TakesAPerRangeNlosProbability) {
                          : 0;
   EXPECT_GT(count, marked * 9 / 10);
   EXPECT_LE(count, marked);
+}
+
+// One uwb-iahckf statistic by hand. Start at (0, 0), P = diag(0.25, 0.25, 1, 1); the cubature
+// points for the range to the anchor at (3, 4) are the start ± 1 m along x and y (ranges
+// sqrt(20), sqrt(32), sqrt(18), sqrt(34)) and four velocity points at the start (range 5), so
+// the predicted range is their mean. A range of 5.2 m is within the 0.24 m NLOS threshold (no
+// robust factor), and the first Sage-Husa weight d_0 = 1 makes the anchor's bias the whole
+// innovation.
+TEST(PointFilters, IahckfFirstStatisticByHand) {
+  loc::EstimatorContext ctx;
+  ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
+  ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
+  auto est = loc::Registry::builtin().create("uwb-iahckf:sigma=0.1,iq=0", ctx);
+  ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
+  ASSERT_TRUE(est->process(rangeAt(10.0, 2, 5.2)).has_value());
+  const double predicted =
+      (std::sqrt(20.0) + std::sqrt(32.0) + std::sqrt(18.0) + std::sqrt(34.0) + 4 * 5.0) / 8;
+  const auto& noise = est->statistics().estimated_noise.at(2);
+  EXPECT_NEAR(noise.bias, 5.2 - predicted, 1e-9);
+  EXPECT_EQ(noise.ranges, 1);
+  EXPECT_EQ(est->statistics().events.count("robust_factor_inflated"), 0u);
 }
