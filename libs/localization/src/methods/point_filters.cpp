@@ -1,6 +1,7 @@
 #include "uwbloc/localization/methods/point_filters.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include "uwbloc/localization/motion_models.hpp"
 
