@@ -339,6 +339,8 @@ TEST(Registry, ErrorsNameTheProblem) {
   EXPECT_NE(message("uwb-kf:q").find("expected key=value"), std::string::npos);
   EXPECT_NE(message("uwb-kf:solver=svd").find("solver"), std::string::npos);
   EXPECT_NE(message("uwb-ekf:iq=maybe").find("boolean"), std::string::npos);
+  EXPECT_NE(message("uwb-hinf-ckf:hinf=0.5").find("'hinf'"), std::string::npos);
+  EXPECT_NE(message("uwb-ins-ickf:k0=6").find("'k1' must exceed 'k0'"), std::string::npos);
 }
 
 TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {

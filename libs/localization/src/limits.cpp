@@ -80,7 +80,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"ang", 0, 10, true, "[rad]"},
       {"min_goodness", 0, 1, false, ""},
       {"heading_offset", -10, 10, false, "[rad]"},
-      {"hinf", 0, 1e6, false, "the H-infinity bound gamma (0: off)"},
+      {"hinf", 0, 1e6, false, "the H-infinity bound over the smallest feasible (0: off)"},
       {"k0", 0, 100, true, "[std]"},
       {"k1", 0, 1e3, true, "[std]"},
       {"nlos_threshold", 0, 1e3, false, "[m]"},

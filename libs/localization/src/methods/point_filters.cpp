@@ -13,8 +13,17 @@ using Range1 = Eigen::Matrix<double, 1, 1>;
 
 }  // namespace
 
+void checkHinfRatio(double hinf) {
+  if (hinf != 0.0 && !(hinf > 1.0))
+    throw ParamError("parameter 'hinf' = " + std::to_string(hinf) +
+                     " must be 0 (plain CKF) or above 1: it multiplies the smallest gamma for "
+                     "which the H-infinity bound exists");
+}
+
 UwbCkf::UwbCkf(const UwbCkfParams& params, const EstimatorContext& context)
-    : UwbEkf(params.ekf, context), hinf_(params.hinf) {}
+    : UwbEkf(params.ekf, context), hinf_(params.hinf) {
+  checkHinfRatio(hinf_);
+}
 
 UwbEkf::RangePrediction UwbCkf::predictRange(const AcceptedRange& r) {
   const auto points = kalman::cubaturePoints<4>(x_, p_);

@@ -50,7 +50,11 @@ UwbIns::UwbIns(const UwbInsParams& params, const EstimatorContext& context)
       params_(params),
       start_pose_(context.initial_pose),
       epochs_(params.epoch_window),
-      detector_(params.still_window, params.still_acc, params.still_gyro, params.still_rate) {}
+      detector_(params.still_window, params.still_acc, params.still_gyro, params.still_rate) {
+  checkHinfRatio(params.hinf);
+  if (!(params.k1 > params.k0))
+    throw ParamError("parameter 'k1' must exceed 'k0' (IGG-III: k0 < k1)");
+}
 
 void UwbIns::reset() {
   initialised_ = false;

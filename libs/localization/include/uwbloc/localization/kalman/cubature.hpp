@@ -18,10 +18,12 @@
 //   position, L = [I 0], since a range update applied at the range rate to the unobserved
 //   velocity with L = I inflated it at every range and diverged on every recording),
 //   the state updated as the CKF's. The bound γ must keep the bracket positive definite: it
-//   caps the variance of L x in every direction below γ^2, and the smaller γ, the more the update inflates
-//   P towards that cap (robustness against unmodelled errors, at the cost of variance). Where the
-//   given γ is infeasible the update is the CKF's and the event is counted. γ →
-//   ∞ is the CKF.
+//   caps the variance of L x in every direction below γ^2, and the smaller γ, the more the
+//   update inflates P towards that cap (robustness against unmodelled errors, at the cost of
+//   variance); γ → ∞ is the CKF. γ is given as a ratio (> 1) to the smallest feasible γ,
+//   sqrt(λ_max(L P_ckf L^T)), so that one setting means the same on every data set: an absolute
+//   γ sat near the variance of Hanyang's poorly observed direction and diverged (7-44 m). Where
+//   rounding still leaves the bracket indefinite, the update is the CKF's and it is counted.
 //
 // SRUKF: van der Merwe & Wan, "The square-root unscented Kalman filter for state and parameter
 //   estimation", ICASSP 2001, Algorithm 3.1: the scaled unscented points (α, β, κ), the square

@@ -1,7 +1,8 @@
 // The H∞ cubature paper's filters (adaptive-hinf-ckf-uwb-ins.txt) and its comparison filters, on
 // each range (tightly coupled) with uwb-ekf's state, start, gate and quarantine (uwb_ekf.hpp):
 //   - uwb-ckf: the cubature Kalman filter (kalman/cubature.hpp, Arasaratnam & Haykin 2009);
-//   - uwb-hinf-ckf: the H∞ cubature filter with the bound γ = `hinf`;
+//   - uwb-hinf-ckf: the H∞ cubature filter, γ = `hinf` times the smallest feasible on the
+//     position (kalman/cubature.hpp);
 //   - uwb-iahckf: the paper's improved adaptive H∞ CKF: the H∞ CKF with a Sage-Husa statistic
 //     per anchor (r̂ the range bias, R̂ its variance, the greenhouse paper's eq. 16 and 24 with
 //     H P H^T replaced by the points' P_zz) and the IGG-III robust factor on R: for the
@@ -28,14 +29,14 @@ namespace uwbloc::loc {
 
 struct UwbCkfParams {
   UwbEkfParams ekf;
-  double hinf = 0.0;  ///< γ, the H∞ bound; 0 = the plain CKF update
+  double hinf = 0.0;  ///< γ over the smallest feasible γ (> 1); 0 = the plain CKF update
 
   template <class V>
   void visit(V&& v) {
     ekf.visit(v);
     v("hinf", hinf,
-      "H-infinity bound gamma: caps each state variance below gamma^2; larger is closer to the "
-      "CKF; 0 = plain CKF");
+      "H-infinity bound as a multiple (> 1) of the smallest feasible gamma on the position; "
+      "larger is closer to the CKF; 0 = plain CKF");
   }
 };
 
@@ -91,6 +92,9 @@ class UwbIahCkf : public UwbCkf {
   UwbIahCkfParams iah_;
   std::map<int, kalman::SageHusaMeasurement<1>> anchors_;
 };
+
+/// Throws ParamError unless `hinf` is 0 (off) or above 1 (a multiple of the smallest feasible γ).
+void checkHinfRatio(double hinf);
 
 /// The IGG-III variance factor for a normalised innovation v (1 up to k0, infinite beyond k1).
 double iggIIIFactor(double v, double k0, double k1);
