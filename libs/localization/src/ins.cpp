@@ -3,15 +3,13 @@
 #include <cmath>
 
 #include "uwbloc/localization/motion_models.hpp"
+#include "uwbloc/uwb/pose2.hpp"
 
 namespace uwbloc::loc {
 
 InsState mechanise(const InsState& s, const ImuSample& imu, double dt,
                    Eigen::Matrix<double, 8, 8>* jacobian) {
-  const double c = std::cos(s.yaw), sn = std::sin(s.yaw);
-  Eigen::Matrix2d r, dr;  // R(ψ) and dR/dψ
-  r << c, -sn, sn, c;
-  dr << -sn, -c, c, -sn;
+  const Eigen::Matrix2d r = rotation(s.yaw);
   const Eigen::Vector2d f = imu.accel - s.accel_bias;
   const Eigen::Vector2d a = r * f;
   InsState out = s;
@@ -22,6 +20,7 @@ InsState mechanise(const InsState& s, const ImuSample& imu, double dt,
     auto& j = *jacobian;
     j.setIdentity();
     j.block<2, 2>(0, 2) = Eigen::Matrix2d::Identity() * dt;
+    const Eigen::Matrix2d dr = rotationDerivative(s.yaw);
     j.block<2, 1>(0, 4) = 0.5 * dt * dt * dr * f;
     j.block<2, 2>(0, 6) = -0.5 * dt * dt * r;
     j.block<2, 1>(2, 4) = dt * dr * f;

@@ -49,8 +49,7 @@ bool FederatedEkf::updateWithRange(const AcceptedRange& r) {
   t_ = t;
   Local& local = locals_[g->second];
   Eigen::Matrix<double, 1, 4> hj;
-  const double h = rangeAt(local.x, r);
-  hj << (local.x(0) - r.anchor.x()) / h, (local.x(1) - r.anchor.y()) / h, 0.0, 0.0;
+  const double h = rangeModel(local.x, r, &hj);
   const Eigen::Matrix<double, 1, 1> rv(rangeVariance());
   const auto inn = kalman::innovate<4, 1>(
       local.p, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);

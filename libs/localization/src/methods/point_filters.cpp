@@ -28,7 +28,7 @@ UwbCkf::UwbCkf(const UwbCkfParams& params, const EstimatorContext& context)
 UwbEkf::RangePrediction UwbCkf::predictRange(const AcceptedRange& r) {
   const auto points = kalman::cubaturePoints<4>(x_, p_);
   moments_ = kalman::propagate<4, 1>(points, x_, [&](const Eigen::Vector4d& x) {
-    return Range1(rangeAt(x, r));
+    return Range1(rangeModel(x, r));
   });
   return {moments_.z(0), moments_.pzz(0, 0) + rangeVariance()};
 }
@@ -119,7 +119,7 @@ void UwbSrukf::predictTo(double t) {
 UwbEkf::RangePrediction UwbSrukf::predictRange(const AcceptedRange& r) {
   points_ = kalman::unscentedPoints<4>(x_, s_, sr_.alpha, sr_.beta, sr_.kappa);
   moments_ = kalman::propagate<4, 1>(points_, x_, [&](const Eigen::Vector4d& x) {
-    return Range1(rangeAt(x, r));
+    return Range1(rangeModel(x, r));
   });
   return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + rangeVariance()};
 }

@@ -61,7 +61,7 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
   const auto pred = kalman::sageHusaPredict<4>(x_, p_, process, f);
   t_ = std::max(t_, r.measurement.t);
   Eigen::Matrix<double, 1, 4> hj;
-  const double predicted = rangeModel(r, &hj);
+  const double predicted = rangeModel(x_, r, &hj);
   auto [it, fresh] = anchors_.try_emplace(r.measurement.anchor_id);
   auto& anchor = it->second;
   if (fresh) anchor.R(0, 0) = params_.front.sigmaValue() * params_.front.sigmaValue();

@@ -23,20 +23,17 @@ void UwbEkf::predictTo(double t) {
   kalman::predictConstantVelocity(x_, p_, t - t_, params_.accel_psd, params_.velocity_tau);
 }
 
-double UwbEkf::rangeAt(const Eigen::Vector4d& x, const AcceptedRange& r) {
+double UwbEkf::rangeModel(const Eigen::Vector4d& x, const AcceptedRange& r,
+                          Eigen::Matrix<double, 1, 4>* hj) {
   const Eigen::Vector3d tag(x(0), x(1), r.measurement.tag_on_robot.z());
-  return std::max((tag - r.anchor).norm(), 1e-6);
-}
-
-double UwbEkf::rangeModel(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const {
-  const double h = rangeAt(x_, r);
-  *hj << (x_(0) - r.anchor.x()) / h, (x_(1) - r.anchor.y()) / h, 0.0, 0.0;
+  const double h = std::max((tag - r.anchor).norm(), 1e-6);
+  if (hj) *hj << (x(0) - r.anchor.x()) / h, (x(1) - r.anchor.y()) / h, 0.0, 0.0;
   return h;
 }
 
 UwbEkf::RangePrediction UwbEkf::predictRange(const AcceptedRange& r) {
   RangePrediction pred;
-  pred.z = rangeModel(r, &hj_);
+  pred.z = rangeModel(x_, r, &hj_);
   pred.s = (hj_ * p_ * hj_.transpose())(0, 0) + rangeVariance();
   return pred;
 }

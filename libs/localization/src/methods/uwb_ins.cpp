@@ -6,6 +6,7 @@
 #include "uwbloc/localization/kalman/cubature.hpp"
 #include "uwbloc/localization/methods/point_filters.hpp"
 #include "uwbloc/localization/motion_models.hpp"
+#include "uwbloc/uwb/pose2.hpp"
 
 namespace uwbloc::loc {
 
@@ -27,18 +28,6 @@ InsState unpack(const Vec8& x) {
   s.gyro_bias = x(5);
   s.accel_bias = x.segment<2>(6);
   return s;
-}
-
-Eigen::Matrix2d rotation(double yaw) {
-  Eigen::Matrix2d r;
-  r << std::cos(yaw), -std::sin(yaw), std::sin(yaw), std::cos(yaw);
-  return r;
-}
-
-Eigen::Matrix2d rotationDerivative(double yaw) {
-  Eigen::Matrix2d r;
-  r << -std::sin(yaw), -std::cos(yaw), std::cos(yaw), -std::sin(yaw);
-  return r;
 }
 
 constexpr double kOutputPeriod = 0.1;  ///< [s] between estimates from the IMU alone

@@ -41,7 +41,7 @@ bool UwbShkf::updateWithRange(const AcceptedRange& r) {
   x_ = x_pred;
   p_ = fpf + q;
   Eigen::Matrix<double, 1, 4> hj;
-  const double innovation = r.measurement.range - rangeModel(r, &hj);
+  const double innovation = r.measurement.range - rangeModel(x_, r, &hj);
   const double e = innovation - a.bias;
   const double hpfh = (hj * fpf * hj.transpose())(0, 0);
   const double hqh = (hj * q * hj.transpose())(0, 0);

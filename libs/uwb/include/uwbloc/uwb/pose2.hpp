@@ -25,6 +25,14 @@ inline Eigen::Matrix2d rotation(double theta) {
   return r;
 }
 
+/// dR/dtheta.
+inline Eigen::Matrix2d rotationDerivative(double theta) {
+  const double c = std::cos(theta), s = std::sin(theta);
+  Eigen::Matrix2d r;
+  r << -s, -c, c, -s;
+  return r;
+}
+
 /// T(pose) p = t + R(theta) p: a point given in the pose's frame, in the outer frame.
 inline Eigen::Vector2d transformPoint(const Pose2& pose, const Eigen::Vector2d& p) {
   const double c = std::cos(pose.z()), s = std::sin(pose.z());

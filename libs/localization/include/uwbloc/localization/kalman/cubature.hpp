@@ -101,18 +101,17 @@ PointSet<N, 2 * N + 1> unscentedPoints(const Vec<N>& x, const Mat<N, N>& s, doub
 
 /// The moments of a point set propagated through h: the predicted measurement, its covariance
 /// (without R) and the state-measurement cross-covariance.
-template <int N, int M>
+template <int N, int M, int K>
 struct PointMoments {
   Vec<M> z;
   Mat<M, M> pzz;
   Mat<N, M> pxz;
-  Mat<M, Eigen::Dynamic> zs;  ///< the propagated points (the square-root filter reuses them)
+  Mat<M, K> zs;  ///< the propagated points (the square-root filter reuses them)
 };
 
 template <int N, int M, int K, class H>
-PointMoments<N, M> propagate(const PointSet<N, K>& set, const Vec<N>& x, H&& h) {
-  PointMoments<N, M> m;
-  m.zs.resize(M, K);
+PointMoments<N, M, K> propagate(const PointSet<N, K>& set, const Vec<N>& x, H&& h) {
+  PointMoments<N, M, K> m;
   for (int i = 0; i < K; ++i) m.zs.col(i) = h(Vec<N>(set.x.col(i)));
   m.z = m.zs * set.wm;
   m.pzz.setZero();
@@ -135,8 +134,8 @@ void cubaturePredict(Vec<N>& x, Mat<N, N>& p, F&& f, const Mat<N, N>& q) {
 }
 
 /// The CKF's measurement update with innovation y = z_meas - m.z and noise R.
-template <int N, int M>
-void cubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M>& m, const Vec<M>& y,
+template <int N, int M, int K>
+void cubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M, K>& m, const Vec<M>& y,
                     const Mat<M, M>& r) {
   const Mat<M, M> pzz = m.pzz + r;
   const Mat<N, M> k = m.pxz * pzz.inverse();
@@ -151,8 +150,8 @@ void cubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M>& m, const 
 /// (P^-1 + H^T R^-1 H)^-1: the state as cubatureUpdate's, the covariance from the H∞ Riccati
 /// form. Returns the γ used; where rounding leaves the bracket indefinite the covariance is the
 /// CKF's and 0 is returned (the caller counts it).
-template <int N, int M>
-double hinfCubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M>& m, const Vec<M>& y,
+template <int N, int M, int K>
+double hinfCubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M, K>& m, const Vec<M>& y,
                           const Mat<M, M>& r, double ratio, const Mat<N, N>& ltl) {
   const Mat<N, N> p_inv = p.inverse();
   const Mat<M, N> h = (p_inv * m.pxz).transpose();  // statistical linearisation
@@ -163,7 +162,7 @@ double hinfCubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M>& m, 
   const Mat<N, N> bracket = info - ltl / (gamma * gamma);
   Eigen::LLT<Mat<N, N>> llt(0.5 * (bracket + bracket.transpose()));
   if (!(gamma > 0.0) || llt.info() != Eigen::Success || !bracket.allFinite()) {
-    cubatureUpdate<N, M>(x, p, m, y, r);
+    cubatureUpdate<N, M, K>(x, p, m, y, r);
     return 0.0;
   }
   const Mat<M, M> pzz = m.pzz + r;
@@ -234,7 +233,8 @@ bool sqrtUnscentedPredict(Vec<N>& x, Mat<N, N>& s, F&& f, const Mat<N, N>& sqrt_
 /// rebuild S.
 template <int N, int M>
 bool sqrtUnscentedUpdate(Vec<N>& x, Mat<N, N>& s, const PointSet<N, 2 * N + 1>& set,
-                         const PointMoments<N, M>& m, const Vec<M>& y, const Mat<M, M>& sqrt_r) {
+                         const PointMoments<N, M, 2 * N + 1>& m, const Vec<M>& y,
+                         const Mat<M, M>& sqrt_r) {
   Mat<M, 2 * N + M> a;
   const double w1 = std::sqrt(set.wc(1));
   for (int i = 1; i < 2 * N + 1; ++i) a.col(i - 1) = w1 * (m.zs.col(i) - m.z);

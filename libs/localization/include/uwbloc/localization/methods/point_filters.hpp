@@ -51,7 +51,7 @@ class UwbCkf : public UwbEkf {
   void cubatureCorrect(double y, double r_var);
 
   double hinf_;
-  kalman::PointMoments<4, 1> moments_;  ///< of the last predictRange
+  kalman::PointMoments<4, 1, 8> moments_;  ///< of the last predictRange
 };
 
 struct UwbIahCkfParams {
@@ -128,7 +128,7 @@ class UwbSrukf : public UwbEkf {
   UwbSrukfParams sr_;
   Eigen::Matrix4d s_ = Eigen::Matrix4d::Identity();  ///< P = S S^T
   kalman::PointSet<4, 9> points_;
-  kalman::PointMoments<4, 1> moments_;
+  kalman::PointMoments<4, 1, 9> moments_;
 };
 
 }  // namespace uwbloc::loc

@@ -86,11 +86,11 @@ class UwbEkf : public UwbEstimator {
   /// refused range is counted.
   bool admit(int id, double innovation, bool in_gate);
 
-  /// The measured 3D distance h(x) from the tag at (x, y, tag height) to the anchor, and its
-  /// Jacobian [dx/h, dy/h, 0, 0] (PF-IBAS paper eq. (3)-(4) before the height projection).
-  double rangeModel(const AcceptedRange& r, Eigen::Matrix<double, 1, 4>* hj) const;
-  /// The same at a state given as a point (the point-based filters).
-  static double rangeAt(const Eigen::Vector4d& x, const AcceptedRange& r);
+  /// The measured 3D distance h(x) from the tag at (x, y, tag height) of state `x` to the
+  /// anchor, and, when asked, its Jacobian [dx/h, dy/h, 0, 0] (PF-IBAS paper eq. (3)-(4) before
+  /// the height projection).
+  static double rangeModel(const Eigen::Vector4d& x, const AcceptedRange& r,
+                           Eigen::Matrix<double, 1, 4>* hj = nullptr);
   double dt(double t) const { return t - t_; }
   double rangeVariance() const { return params_.front.sigmaValue() * params_.front.sigmaValue(); }
 
