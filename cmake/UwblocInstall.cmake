@@ -2,7 +2,7 @@
 # and a package configuration under P, so that another project can find_package(uwbloc).
 include(CMakePackageConfigHelpers)
 
-set(UWBLOC_LIBRARIES uwbloc_uwb uwbloc_localization uwbloc_dataset uwbloc_evaluation)
+set(UWBLOC_LIBRARIES uwbloc_uwb uwbloc_nlos uwbloc_localization uwbloc_dataset uwbloc_evaluation)
 foreach(lib ${UWBLOC_LIBRARIES})
   string(REPLACE "uwbloc_" "" short ${lib})
   set_target_properties(${lib} PROPERTIES EXPORT_NAME ${short})
@@ -11,7 +11,7 @@ endforeach()
 install(TARGETS ${UWBLOC_LIBRARIES} EXPORT uwblocTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
-foreach(dir uwb localization dataset evaluation)
+foreach(dir uwb nlos localization dataset evaluation)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/libs/${dir}/include/
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endforeach()

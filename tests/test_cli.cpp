@@ -255,3 +255,48 @@ TEST(Cli, AReferenceThatDoesNotOverlapTheRunIsRefused) {
   EXPECT_NE(allowed.output.find("WARNING"), std::string::npos) << allowed.output;
   EXPECT_NE(allowed.output.find("FLAGGED"), std::string::npos) << allowed.output;
 }
+
+TEST(Cli, NlosTrainEvalAndAFilterThatUsesTheModel) {
+  const auto dir = uwbloc::test::scratchDir();
+  // 300 ranges to anchors 1-3, every third one NLOS (received minus first-path power 10 dB
+  // against 2 dB, 0.5 m long), with the truth columns an import with a reference writes.
+  writeRanges(dir / "r.rawlog", 300);
+  std::string csv = "t,anchor_id,range,rx_power_dbm,fp_power_dbm,true_range,error,nlos\n";
+  char row[160];
+  for (int k = 0; k < 300; ++k) {
+    const bool nlos = k % 3 == 0;
+    std::snprintf(row, sizeof row, "%.6f,%d,4.0,%.2f,-85.00,%.4f,%.4f,%d\n", 0.1 * k, 1 + k % 3,
+                  nlos ? -75.0 + 0.01 * k : -83.0 - 0.01 * k, nlos ? 3.5 : 4.0, nlos ? 0.5 : 0.0,
+                  nlos ? 1 : 0);
+    csv += row;
+  }
+  const auto features = writeText(dir / "features.csv", csv);
+  const auto model = (dir / "m.json").string();
+  auto r = runCli("nlos train --data " + features + " --out " + model);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("power features"), std::string::npos) << r.output;  // auto: no CIR
+  r = runCli("nlos eval --model " + model + " --data " + features);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find(" 1.000 "), std::string::npos) << r.output;  // accuracy on its rows
+  // A filter that uses it: every accepted range judged, and said so in metrics.json.
+  // Anchors 2 m above the tag, each 4 m (3.464 m in the plane) from a tag at rest at the origin.
+  const auto m = writeText(dir / "m.ini",
+                           "[dataset]\nrawlog = r.rawlog\nrange_features = features.csv\n"
+                           "ground_truth = gt.txt\nground_truth_format = time_xyphi\n"
+                           "[anchors]\nanchors_csv = anchors.csv\n");
+  writeText(dir / "gt.txt", "0 0 0 0\n10 0 0 0\n20 0 0 0\n30 0 0 0\n");
+  writeText(dir / "anchors.csv", "id,x,y,z\n1,3.4641,0,2\n2,-1.7321,3,2\n3,-1.7321,-3,2\n");
+  r = runCli("run -d " + m + " -m uwb-ekf:nlos_model=model:" + model + ",nlos_use=reject -o " +
+             (dir / "run").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream json(dir / "run" / "metrics.json");
+  const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"nlos_model\": 100"), std::string::npos) << text.substr(0, 2000);
+  // A malformed row names its file and line; a missing model names the parameter.
+  const auto bad = writeText(dir / "bad.csv", "t,anchor_id,range,nlos\n1,1,4,0\n2,1,x,1\n");
+  expectFailureMentioning(runCli("nlos train --data " + bad + " --out " + model),
+                          {"error:", bad + ":3", "'range'", "not a number"});
+  expectFailureMentioning(
+      runCli("run -d " + m + " -m uwb-ekf:nlos_model=" + (dir / "none.json").string()),
+      {"error:", "nlos_model", "none.json"});
+}

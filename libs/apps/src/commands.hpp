@@ -9,6 +9,7 @@
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/localization/optim/optimizers.hpp"
+#include "uwbloc/nlos/train.hpp"
 
 namespace uwbloc::apps {
 
@@ -124,6 +125,22 @@ class MethodsCommand : public Command {
 
  private:
   bool limits_ = false;
+};
+
+/// `nlos train|eval|cv|cross`: NLOS identification and range-error correction.
+class NlosCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  CLI::App *train_ = nullptr, *eval_ = nullptr, *cv_ = nullptr, *cross_ = nullptr;
+  std::vector<std::string> files_;
+  std::string data_dir_, out_, model_path_, features_ = "auto", model_types_ = "trees-density";
+  nlos::TrainParams base_;
+  int folds_ = 5, repeats_ = 5;
+  double target_weight_ = 0.0;
+  std::vector<int> shots_{0, 10, 50, 200};
 };
 
 }  // namespace uwbloc::apps

@@ -22,14 +22,16 @@ namespace uwbloc::apps {
 
 namespace {
 
-// "a:k=v,k=v,b" -> {"a:k=v,k=v", "b"}: an item with '=' but no ':' continues the previous spec.
+// "a:k=v,k=v,b" -> {"a:k=v,k=v", "b"}: an item with '=' before any ':' (k=v, or k=model:path)
+// continues the previous spec.
 std::vector<std::string> splitMethods(const std::string& list) {
   std::vector<std::string> out;
   std::string item;
   std::istringstream in(list);
   while (std::getline(in, item, ',')) {
     if (item.empty()) continue;
-    if (item.find('=') != std::string::npos && item.find(':') == std::string::npos && !out.empty())
+    const auto eq = item.find('=');
+    if (eq != std::string::npos && eq < item.find(':') && !out.empty())
       out.back() += "," + item;
     else
       out.push_back(item);

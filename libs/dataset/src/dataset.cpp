@@ -18,9 +18,10 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
   std::map<std::pair<long long, int>, std::pair<double, double>> features;
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
     if (f.empty() || f[0] == "t") return;
-    if (f.size() != 5)
+    if (f.size() != 5 && f.size() != 8)
       throwInputError(path, line,
-                      "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm', got " +
+                      "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm' (8 with "
+                      "'true_range,error,nlos'), got " +
                           std::to_string(f.size()));
     const double t = parseNumber(f[0], path, line, "t");
     const int id = parseId(f[1], path, line, "anchor_id");
@@ -32,7 +33,11 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
   for (auto& e : events) {
     auto* r = std::get_if<uwb::Range>(&e);
     if (!r) continue;
-    auto it = features.find({std::llround(r->t * 1e6), r->anchor_id});
+    // The rawlog's clock and the CSV's six decimals may differ by a microsecond's rounding.
+    const long long us = std::llround(r->t * 1e6);
+    auto it = features.find({us, r->anchor_id});
+    if (it == features.end()) it = features.find({us - 1, r->anchor_id});
+    if (it == features.end()) it = features.find({us + 1, r->anchor_id});
     if (it == features.end()) continue;
     r->rx_power_dbm = it->second.first;
     r->fp_power_dbm = it->second.second;
@@ -122,15 +127,27 @@ std::optional<std::string> referenceCoverageWarning(const Dataset& ds) {
   return std::string(buf);
 }
 
-std::string formatRangeFeatures(const std::vector<loc::Event>& events) {
-  std::string out = "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n";
-  char buf[160];
-  for (const auto& e : events) {
-    const auto* r = std::get_if<uwb::Range>(&e);
+std::string formatRangeFeatures(const std::vector<loc::Event>& events,
+                                const std::vector<RangeLabel>* truth) {
+  std::string out = "t,anchor_id,range,rx_power_dbm,fp_power_dbm";
+  out += truth ? ",true_range,error,nlos\n" : "\n";
+  char buf[200];
+  for (size_t i = 0; i < events.size(); ++i) {
+    const auto* r = std::get_if<uwb::Range>(&events[i]);
     if (!r || r->tag_id != 0 || !r->rx_power_dbm || !r->fp_power_dbm) continue;
-    std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f\n", r->t, r->anchor_id, r->range,
+    std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f", r->t, r->anchor_id, r->range,
                   *r->rx_power_dbm, *r->fp_power_dbm);
     out += buf;
+    if (truth) {
+      const RangeLabel& g = (*truth)[i];
+      if (std::isfinite(g.true_range))
+        std::snprintf(buf, sizeof buf, ",%.4f,%.4f,%d", g.true_range, r->range - g.true_range,
+                      g.nlos);
+      else
+        std::snprintf(buf, sizeof buf, ",,,");
+      out += buf;
+    }
+    out += "\n";
   }
   return out;
 }

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "uwbloc/dataset/dataset.hpp"
@@ -124,6 +125,116 @@ std::vector<TimedPose> readReference(const std::string& trajectory,
   return gt;
 }
 
+// The reference pose at t, linearly interpolated (heading along the shorter arc); nothing
+// outside the reference or across a gap longer than a second.
+std::optional<Eigen::Vector3d> referenceAt(const std::vector<TimedPose>& gt, double t) {
+  const auto it = std::lower_bound(gt.begin(), gt.end(), t,
+                                   [](const TimedPose& p, double v) { return p.t < v; });
+  if (it == gt.end()) return std::nullopt;
+  if (it->t == t) return it->pose;
+  if (it == gt.begin() || it->t - (it - 1)->t > 1.0) return std::nullopt;
+  const TimedPose& a = *(it - 1);
+  const double u = (t - a.t) / (it->t - a.t);
+  Eigen::Vector3d p = a.pose + u * (it->pose - a.pose);
+  p.z() = a.pose.z() + u * loc::wrapAngle(it->pose.z() - a.pose.z());
+  return p;
+}
+
+struct LabelSample {
+  Eigen::Vector3d pose;  // reference
+  Eigen::Vector3d anchor;
+  double range;
+  int anchor_id;
+  size_t event;
+};
+
+// |error - the anchor's median error| of every sample, with the tag at `lever` in the body
+// frame; the anchor medians (constant biases: antenna delays) into `bias`.
+std::vector<double> deviations(const std::vector<LabelSample>& s, const Eigen::Vector2d& lever,
+                               double tag_height, std::map<int, double>* bias = nullptr) {
+  std::map<int, std::vector<double>> by_anchor;
+  std::vector<double> err(s.size());
+  for (size_t i = 0; i < s.size(); ++i) {
+    const double c = std::cos(s[i].pose.z()), sn = std::sin(s[i].pose.z());
+    const Eigen::Vector3d tag(s[i].pose.x() + c * lever.x() - sn * lever.y(),
+                              s[i].pose.y() + sn * lever.x() + c * lever.y(), tag_height);
+    err[i] = s[i].range - (tag - s[i].anchor).norm();
+    by_anchor[s[i].anchor_id].push_back(err[i]);
+  }
+  std::map<int, double> med;
+  for (auto& [id, e] : by_anchor) {
+    std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
+    med[id] = e[e.size() / 2];
+  }
+  for (size_t i = 0; i < s.size(); ++i) err[i] = std::abs(err[i] - med[s[i].anchor_id]);
+  if (bias) *bias = med;
+  return err;
+}
+
+double medianOf(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// Each range's true distance and label against the reference. The reference is the robot's
+// pose, not the tag's: the tag's place on the robot (lever arm) is estimated from the data, as
+// the offset within 1 m (5 cm grid, every 5th range) that makes the ranges agree best (least
+// median deviation from each anchor's median error). The true distance runs from that tag
+// position, at the tag height, to the anchor. A range is NLOS when its error departs from its
+// anchor's median error (a constant bias is no NLOS) by more than max(0.3 m, 3 robust std);
+// 0.3 m is three times the DW1000's LOS ranging std (about 0.1 m).
+std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
+                                    const std::vector<uwb::Anchor>& anchors,
+                                    const std::vector<TimedPose>& gt, double tag_height,
+                                    ImportSummary& summary) {
+  std::vector<RangeLabel> labels(events.size());
+  std::vector<LabelSample> samples;
+  for (size_t i = 0; i < events.size(); ++i) {
+    const auto* r = std::get_if<uwb::Range>(&events[i]);
+    if (!r) continue;
+    const auto p = referenceAt(gt, r->t);
+    const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
+    if (p && a) samples.push_back({*p, a->position, r->range, r->anchor_id, i});
+  }
+  if (samples.size() < 50) return labels;
+  std::vector<LabelSample> sub;
+  for (size_t i = 0; i < samples.size(); i += 5) sub.push_back(samples[i]);
+  Eigen::Vector2d lever = Eigen::Vector2d::Zero();
+  double best = medianOf(deviations(sub, lever, tag_height));
+  const double at_origin = best;
+  for (int ix = -20; ix <= 20; ++ix)
+    for (int iy = -20; iy <= 20; ++iy) {
+      const Eigen::Vector2d l(0.05 * ix, 0.05 * iy);
+      const double m = medianOf(deviations(sub, l, tag_height));
+      if (m < best - 1e-9) best = m, lever = l;
+    }
+  std::map<int, double> bias;
+  const auto dev = deviations(samples, lever, tag_height, &bias);
+  const double threshold = std::max(0.3, 3.0 * 1.4826 * medianOf(dev));
+  long nlos = 0;
+  for (size_t k = 0; k < samples.size(); ++k) {
+    const auto& s = samples[k];
+    const double c = std::cos(s.pose.z()), sn = std::sin(s.pose.z());
+    const Eigen::Vector3d tag(s.pose.x() + c * lever.x() - sn * lever.y(),
+                              s.pose.y() + sn * lever.x() + c * lever.y(), tag_height);
+    labels[s.event].true_range = (tag - s.anchor).norm();
+    labels[s.event].nlos = dev[k] > threshold;
+    nlos += labels[s.event].nlos;
+  }
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "range_features.csv: %zu ranges labelled against the reference: tag at (%.2f, "
+                "%.2f) m on the robot (median deviation %.3f m, %.3f m at the origin); %ld "
+                "NLOS (more than %.3f m from their anchor's median error)",
+                samples.size(), lever.x(), lever.y(), best, at_origin, nlos, threshold);
+  summary.notes.push_back(buf);
+  for (const auto& [id, b] : bias) {
+    std::snprintf(buf, sizeof buf, "  anchor %d: median range error %+.3f m", id, b);
+    summary.notes.push_back(buf);
+  }
+  return labels;
+}
+
 }  // namespace
 
 ImportSummary importHanyang(const std::string& run_dir, const std::string& out_dir,
@@ -145,7 +256,8 @@ ImportSummary importHanyang(const std::string& run_dir, const std::string& out_d
   writeRawlog((out / "uwb.rawlog").string(), events);
   writeFileAtomic((out / "ground_truth.tum").string(), formatTum(gt));
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
-  writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(events));
+  const auto truth = rangeLabels(events, anchors, gt, params.tag_height, summary);
+  writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(events, &truth));
 
   ManifestDraft m;
   m.comments = {"Imported by 'uwbloc import hanyang' from " + fs::absolute(run_dir).string()};

@@ -377,8 +377,20 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(s.anchors));
   writeFileAtomic((out / "range_truth.csv").string(), formatRangeTruth(sim.range_truth));
 
-  if (s.uwb.features)
-    writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(sim.events));
+  if (s.uwb.features) {
+    // The features with each range's truth and NLOS flag: a labelled set for 'uwbloc nlos'.
+    std::map<std::tuple<long long, int, int>, const RangeTruth*> by_key;
+    for (const auto& g : sim.range_truth)
+      by_key[{std::llround(g.t * 1e6), g.tag_id, g.anchor_id}] = &g;
+    std::vector<RangeLabel> labels(sim.events.size());
+    for (size_t i = 0; i < sim.events.size(); ++i)
+      if (const auto* r = std::get_if<uwb::Range>(&sim.events[i])) {
+        const auto it = by_key.find({std::llround(r->t * 1e6), r->tag_id, r->anchor_id});
+        if (it != by_key.end()) labels[i] = {it->second->true_range, it->second->nlos ? 1 : 0};
+      }
+    writeFileAtomic((out / "range_features.csv").string(),
+                    formatRangeFeatures(sim.events, &labels));
+  }
 
   const auto map = scenarioMap(s);
   if (map) map->save((out / "map.gridmap.gz").string());

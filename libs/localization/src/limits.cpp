@@ -38,6 +38,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"iq_zeta", 0, 1e3, false, ""},
       {"iq_vmax", 0, 1e3, false, "[m/s]"},
       {"iq_floor", 0, 1e3, false, "[m]"},
+      {"nlos_reject", 0, 1, true, "a probability"},
       {"nlos_k", 0, 100, true, "[std]"},
       {"downweight", 1, 1e6, false, "a sigma factor"},
       {"nlos_suspend", 0, 1e6, false, "epochs"},

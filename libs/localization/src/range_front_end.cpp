@@ -1,7 +1,10 @@
 #include "uwbloc/localization/range_front_end.hpp"
 
 #include <algorithm>
+#include <cmath>
 
+#include "uwbloc/localization/params.hpp"
+#include "uwbloc/nlos/model.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
 namespace uwbloc::loc {
@@ -10,7 +13,52 @@ RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb:
     : params_(params),
       anchors_(std::move(anchors)),
       increments_(uwb::IncrementQueueParams{params.iq_length, params.iq_zeta, params.iq_max_speed,
-                                            params.iq_floor, 10}) {}
+                                            params.iq_floor, 10}) {
+  if (params.nlos_model.empty()) return;
+  std::string path = params.nlos_model;
+  if (path.rfind("model:", 0) == 0) path = path.substr(6);
+  try {
+    nlos_ = std::make_shared<const nlos::Model>(nlos::Model::load(path));
+  } catch (const nlos::DataError& e) {
+    throw ParamError(std::string("nlos_model: ") + e.what());
+  }
+  if (nlos_->set == nlos::FeatureSet::kCir || nlos_->set == nlos::FeatureSet::kCirRaw)
+    throw ParamError("nlos_model: " + path + " uses the '" + nlos::toString(nlos_->set) +
+                     "' features (CIR diagnostics), which a range does not carry: train it with "
+                     "--features power or sagehusa");
+}
+
+bool RangeFrontEnd::judge(AcceptedRange& r) {
+  auto& m = r.measurement;
+  if (!m.rx_power_dbm || !m.fp_power_dbm) {
+    r.nlos_decision = "nlos_model_no_features";
+    return true;
+  }
+  const nlos::Judgement j = nlos_->judge(nlos::sampleOf(m));
+  m.nlos_probability = j.p_nlos;
+  if (j.p_nlos >= params_.nlos_reject) return false;
+  const double sigma = params_.sigmaValue();
+  switch (params_.nlos_use) {
+    case NlosUse::kWeight:
+      r.variance_scale = 1.0 / (1.0 - std::min(j.p_nlos, 0.99));
+      r.nlos_decision = "nlos_model_weighted";
+      break;
+    case NlosUse::kCorrect: {
+      m.range -= j.error;
+      const double dz = r.anchor.z() - m.tag_on_robot.z();
+      const auto planar = uwb::projectToPlane(m.range, dz);
+      if (!planar) return false;
+      r.planar = *planar;
+      r.variance_scale = 1.0 + (j.error_sigma * j.error_sigma) / (sigma * sigma);
+      r.nlos_decision = "nlos_model_corrected";
+      break;
+    }
+    case NlosUse::kReject:
+      r.nlos_decision = "nlos_model_kept";
+      break;
+  }
+  return true;
+}
 
 std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
                                                    uwb::RejectReason* reason) {
@@ -29,7 +77,9 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
   if (!planar) return fail(uwb::RejectReason::kBelowHeight);
   if (params_.increment_gate && !increments_.accept(range.anchor_id, range.t, range.range))
     return fail(uwb::RejectReason::kIncrement);
-  return AcceptedRange{range, anchor->position, *planar};
+  AcceptedRange accepted{range, anchor->position, *planar};
+  if (nlos_ && !judge(accepted)) return fail(uwb::RejectReason::kNlosModel);
+  return accepted;
 }
 
 std::optional<AcceptedRange> UwbEstimator::acceptRange(const Event& event) {
@@ -42,6 +92,7 @@ std::optional<AcceptedRange> UwbEstimator::acceptRange(const Event& event) {
     return std::nullopt;
   }
   ++stats_.accepted_ranges;
+  if (accepted->nlos_decision) ++stats_.events[accepted->nlos_decision];
   return accepted;
 }
 
@@ -115,7 +166,8 @@ std::optional<std::vector<AcceptedRange>> EpochBuffer::flush() {
 std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, double sigma) {
   std::vector<uwb::PlanarRange> out;
   out.reserve(epoch.size());
-  for (const auto& r : epoch) out.push_back({r.anchor.head<2>(), r.planar, sigma});
+  for (const auto& r : epoch)
+    out.push_back({r.anchor.head<2>(), r.planar, sigma * std::sqrt(r.variance_scale)});
   return out;
 }
 

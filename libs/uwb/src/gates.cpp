@@ -20,6 +20,7 @@ constexpr std::pair<RejectReason, const char*> kReasonNames[] = {
     {RejectReason::kInnovation, "innovation_gate"},
     {RejectReason::kTimeBackwards, "time_backwards"},
     {RejectReason::kOtherTag, "other_tag"},
+    {RejectReason::kNlosModel, "nlos_model"},
 };
 }  // namespace
 

@@ -47,10 +47,11 @@ void RangeGraph::addRelativePose(int from, int to, const Eigen::Vector3d& delta,
   odometry_.push_back({from, to, delta, Eigen::Matrix3d(llt.matrixU())});
 }
 
-void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag) {
+void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag,
+                          double variance_scale) {
   for (size_t i = 0; i < anchors_.size(); ++i)
     if (anchors_[i].id == anchor_id) {
-      ranges_.push_back({pose, static_cast<int>(i), range, tag});
+      ranges_.push_back({pose, static_cast<int>(i), range, tag, variance_scale});
       return;
     }
   throw std::invalid_argument("RangeGraph: unknown anchor " + std::to_string(anchor_id));
@@ -118,7 +119,7 @@ void RangeGraph::build(const RangeGraphParams& params) {
       loss = new ceres::HuberLoss(params_.loss_scale);
     else if (params_.loss == RobustLoss::kCauchy)
       loss = new ceres::CauchyLoss(params_.loss_scale);
-    p.AddResidualBlock(RangeCost::Create(r.range, r.tag, params_.range_sigma), loss,
+    p.AddResidualBlock(RangeCost::Create(r.range, r.tag, params_.range_sigma * std::sqrt(r.variance_scale)), loss,
                        poses_[static_cast<size_t>(r.pose)].data(),
                        anchors_[static_cast<size_t>(r.anchor)].position.data(),
                        &biases_[static_cast<size_t>(r.anchor)]);
@@ -258,7 +259,10 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
   double weighted_sq = 0.0, redundancy = 0.0;
   for (const auto& r : ranges_) {
     Eigen::Vector3d g;
-    const double e = rangeResidual(r, &g);
+    // Normalised by the range's own variance scale (1 unless an NLOS model doubted it).
+    const double root = std::sqrt(r.variance_scale);
+    const double e = rangeResidual(r, &g) / root;
+    g /= root;
     const double w = lossWeight(e / sigma);
     const double h = w * g.dot(pose_cov[static_cast<size_t>(r.pose)] * g) / (sigma * sigma);
     weighted_sq += w * e * e;

@@ -50,7 +50,7 @@ bool FederatedEkf::updateWithRange(const AcceptedRange& r) {
   Local& local = locals_[g->second];
   Eigen::Matrix<double, 1, 4> hj;
   const double h = rangeModel(local.x, r, &hj);
-  const Eigen::Matrix<double, 1, 1> rv(rangeVariance());
+  const Eigen::Matrix<double, 1, 1> rv(rangeVariance(r));
   const auto inn = kalman::innovate<4, 1>(
       local.p, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);
   const bool used = admit(r.measurement.anchor_id, inn.y(0),

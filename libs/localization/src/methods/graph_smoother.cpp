@@ -63,7 +63,8 @@ std::optional<PoseEstimate> GraphSmoother::solveWindow() {
       g.addOdometry(v - 1, v, w.odometry_before, odometrySigma(w.odometry_before));
     }
     for (const auto& r : w.ranges)
-      g.addRange(v, r.measurement.anchor_id, r.measurement.range, r.measurement.tag_on_robot);
+      g.addRange(v, r.measurement.anchor_id, r.measurement.range, r.measurement.tag_on_robot,
+                 r.variance_scale);
   }
   graph::RangeGraphParams p = graphParams();
   p.max_iterations = std::min(p.max_iterations, 20);
@@ -288,7 +289,7 @@ void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& t
       continue;
     }
     g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range,
-               r.measurement.tag_on_robot);
+               r.measurement.tag_on_robot, r.variance_scale);
   }
 }
 

@@ -30,7 +30,7 @@ UwbEkf::RangePrediction UwbCkf::predictRange(const AcceptedRange& r) {
   moments_ = kalman::propagate<4, 1>(points, x_, [&](const Eigen::Vector4d& x) {
     return Range1(rangeModel(x, r));
   });
-  return {moments_.z(0), moments_.pzz(0, 0) + rangeVariance()};
+  return {moments_.z(0), moments_.pzz(0, 0) + rangeVariance(r)};
 }
 
 void UwbCkf::cubatureCorrect(double y, double r_var) {
@@ -44,8 +44,8 @@ void UwbCkf::cubatureCorrect(double y, double r_var) {
   }
 }
 
-void UwbCkf::correctWithRange(const AcceptedRange&, double y, const RangePrediction&) {
-  cubatureCorrect(y, rangeVariance());
+void UwbCkf::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
+  cubatureCorrect(y, rangeVariance(r));
 }
 
 double iggIIIFactor(double v, double k0, double k1) {
@@ -80,7 +80,7 @@ bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
   const double factor = suspect ? iggIIIFactor(v, iah_.k0, iah_.k1) : 1.0;
   if (!admit(id, e, std::isfinite(factor))) return false;
   if (factor > 1.0) ++stats_.events["robust_factor_inflated"];
-  cubatureCorrect(e, factor * stat.R(0, 0));
+  cubatureCorrect(e, factor * stat.R(0, 0) * r.variance_scale);
   if (factor == 1.0) {
     // The Sage-Husa statistics (eq. 16, 24), with the points' P_zz for H P H^T.
     const double d = kalman::sageHusaWeight(iah_.forgetting, stat.k);
@@ -121,12 +121,12 @@ UwbEkf::RangePrediction UwbSrukf::predictRange(const AcceptedRange& r) {
   moments_ = kalman::propagate<4, 1>(points_, x_, [&](const Eigen::Vector4d& x) {
     return Range1(rangeModel(x, r));
   });
-  return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + rangeVariance()};
+  return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + rangeVariance(r)};
 }
 
-void UwbSrukf::correctWithRange(const AcceptedRange&, double y, const RangePrediction&) {
+void UwbSrukf::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
   const bool ok = kalman::sqrtUnscentedUpdate<4, 1>(x_, s_, points_, moments_, Range1(y),
-                                                    Range1(std::sqrt(rangeVariance())));
+                                                    Range1(std::sqrt(rangeVariance(r))));
   if (!ok) ++stats_.events["sqrt_rebuilt"];
   p_ = s_ * s_.transpose();
 }

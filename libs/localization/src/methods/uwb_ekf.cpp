@@ -34,15 +34,15 @@ double UwbEkf::rangeModel(const Eigen::Vector4d& x, const AcceptedRange& r,
 UwbEkf::RangePrediction UwbEkf::predictRange(const AcceptedRange& r) {
   RangePrediction pred;
   pred.z = rangeModel(x_, r, &hj_);
-  pred.s = (hj_ * p_ * hj_.transpose())(0, 0) + rangeVariance();
+  pred.s = (hj_ * p_ * hj_.transpose())(0, 0) + rangeVariance(r);
   return pred;
 }
 
-void UwbEkf::correctWithRange(const AcceptedRange&, double y, const RangePrediction& pred) {
+void UwbEkf::correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) {
   kalman::Innovation<1> inn;
   inn.y(0) = y;
   inn.s(0, 0) = pred.s;
-  kalman::josephUpdate<4, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance()));
+  kalman::josephUpdate<4, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance(r)));
 }
 
 PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {

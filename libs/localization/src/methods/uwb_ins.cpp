@@ -175,7 +175,7 @@ bool UwbIns::updateRangeCubature(const AcceptedRange& r) {
     return Eigen::Matrix<double, 1, 1>(std::max(d.norm(), 1e-6));
   });
   const double sigma = params_.front.sigmaValue();
-  double rv = sigma * sigma;
+  double rv = sigma * sigma * r.variance_scale;
   const double y = r.measurement.range - m.z(0);
   const double v = std::abs(y) / std::sqrt(m.pzz(0, 0) + rv);
   if (params_.robust && std::abs(y) > params_.nlos_threshold) {
@@ -217,7 +217,7 @@ bool UwbIns::updateRange(const AcceptedRange& r) {
   hj(0, 1) = diff.y() / h;
   hj(0, 4) = diff.head<2>().dot(rotationDerivative(s_.yaw) * lever) / h;
   const double sigma = params_.front.sigmaValue();
-  const Eigen::Matrix<double, 1, 1> rv(sigma * sigma);
+  const Eigen::Matrix<double, 1, 1> rv(sigma * sigma * r.variance_scale);
   const auto inn =
       kalman::innovate<8, 1>(p_, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);
   if (!kalman::inGate(inn, uwb::ChiSquareGate(params_.gate))) {

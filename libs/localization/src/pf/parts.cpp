@@ -107,6 +107,7 @@ bool UwbRangeMeasurement::take(const Event& event, EstimatorStatistics& stats) {
     return false;
   }
   ++stats.accepted_ranges;
+  if (accepted->nlos_decision) ++stats.events[accepted->nlos_decision];
   epoch_.push_back(*accepted);
   return true;
 }
@@ -152,7 +153,8 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   // The test and the likelihood judge the range with its anchor's learnt bias removed: a
   // consistent bias is not NLOS.
   const double d = r.measurement.range - noise_.bias(r.measurement.anchor_id);
-  const double sigma = noise_.sigma();
+  // The range's std: the learnt one, widened where an NLOS model doubts the range.
+  const double sigma = noise_.sigma() * std::sqrt(r.variance_scale);
   // The pose test: innovation d - d̂ against S = sigma^2 + J P J^T, gated at k sigma.
   const double s = sigma * sigma + state_variance;
   RangeDecision dec;
@@ -180,7 +182,7 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   }
   dec.used = true;
   stats.range_decisions.push_back(dec);
-  if (sig == sigma) {  // the swarm's fitness uses the clean ones
+  if (sig == sigma && r.variance_scale == 1.0) {  // the swarm's fitness uses the clean ones
     used_.push_back(r);
     used_.back().measurement.range = d;
   }

@@ -48,12 +48,23 @@ std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& e
 std::optional<std::string> referenceCoverageWarning(const Dataset& ds);
 
 /// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per
-/// range, in the rawlog's order. CObservationBeaconRanges has no field for the powers, so the
-/// importer writes them here and the loader attaches them to the ranges with the same time and
-/// anchor. Returns how many ranges received features.
+/// range, in the rawlog's order, and when the importer had a reference three more columns,
+/// "true_range,error,nlos" (the distance from the reference, estimated - true, and the label
+/// that the NLOS trainer reads; empty where the reference does not reach).
+/// CObservationBeaconRanges has no field for the powers, so the importer writes them here and
+/// the loader attaches them to the ranges with the same time and anchor. Returns how many
+/// ranges received features.
 long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& events);
 
-/// The side file's text: one row per range of the robot's tag that carries its powers.
-std::string formatRangeFeatures(const std::vector<loc::Event>& events);
+/// What a reference says of one range.
+struct RangeLabel {
+  double true_range = NAN;  ///< [m]
+  int nlos = -1;            ///< 1 NLOS, 0 LOS, -1 unknown
+};
+
+/// The side file's text: one row per range of the robot's tag that carries its powers; with
+/// `truth` (one per event), the three truth columns too.
+std::string formatRangeFeatures(const std::vector<loc::Event>& events,
+                                const std::vector<RangeLabel>* truth = nullptr);
 
 }  // namespace uwbloc::data

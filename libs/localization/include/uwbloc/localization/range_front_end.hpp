@@ -3,14 +3,31 @@
 #pragma once
 
 #include <array>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/multilateration.hpp"
 
+namespace uwbloc::nlos {
+class Model;
+}
+
 namespace uwbloc::loc {
+
+/// What the front end does with a range that an NLOS model judged (nlos_model=PATH).
+enum class NlosUse {
+  kWeight,   ///< widen the range's variance by 1 / (1 - P(NLOS))
+  kCorrect,  ///< subtract the predicted error; add its variance to the range's
+  kReject,   ///< drop the range when P(NLOS) >= nlos_reject
+};
+constexpr std::array<EnumName<NlosUse>, 3> enumNames(NlosUse) {
+  return {{{NlosUse::kWeight, "weight"}, {NlosUse::kCorrect, "correct"},
+           {NlosUse::kReject, "reject"}}};
+}
 
 /// The range std a method starts from when `sigma=auto` and the data has not told it yet [m].
 constexpr double kStartRangeSigma = 0.15;
@@ -23,6 +40,9 @@ struct RangeFrontEndParams {
   double iq_zeta = 3.0;        ///< increment queue scale ζ
   double iq_max_speed = 2.0;   ///< fastest plausible tag speed [m/s]
   double iq_floor = 0.3;       ///< increment tolerance for noise [m]
+  std::string nlos_model;      ///< NLOS model file (uwbloc nlos train); empty: none
+  NlosUse nlos_use = NlosUse::kWeight;
+  double nlos_reject = 0.9;    ///< P(NLOS) at which a range is dropped (every use) [-]
 
   /// The fixed std, or the starting one when auto.
   double sigmaValue() const { return sigma.value.value_or(kStartRangeSigma); }
@@ -38,6 +58,13 @@ struct RangeFrontEndParams {
     v("iq_zeta", iq_zeta, "increment queue scale on the mean recent increment");
     v("iq_vmax", iq_max_speed, "increment queue: fastest plausible speed [m/s]");
     v("iq_floor", iq_floor, "increment queue: noise tolerance [m]");
+    v("nlos_model", nlos_model,
+      "NLOS model (JSON from 'uwbloc nlos train', 'model:' prefix optional) judging each range "
+      "from its received and first-path power; empty: none");
+    v("nlos_use", nlos_use,
+      "what the model's judgement does: weight (variance / (1 - P(NLOS))), correct (subtract "
+      "the predicted error) or reject (drop at nlos_reject)");
+    v("nlos_reject", nlos_reject, "P(NLOS) at which a judged range is dropped");
   }
 };
 
@@ -46,6 +73,10 @@ struct AcceptedRange {
   uwb::Range measurement;
   Eigen::Vector3d anchor;  ///< anchor position [m]
   double planar = 0.0;     ///< height-projected range, eq. (3) [m]
+  /// The range's variance over the method's own (> 1: an NLOS model doubts it).
+  double variance_scale = 1.0;
+  /// What an NLOS model did to it ("nlos_model_weighted", ...), for the statistics; or null.
+  const char* nlos_decision = nullptr;
 };
 
 class RangeFrontEnd {
@@ -56,7 +87,11 @@ class RangeFrontEnd {
   const std::vector<uwb::Anchor>& anchors() const { return anchors_; }
 
  private:
+  /// The NLOS model's judgement applied to an accepted range; false: reject it.
+  bool judge(AcceptedRange& r);
+
   RangeFrontEndParams params_;
+  std::shared_ptr<const nlos::Model> nlos_;
   std::vector<uwb::Anchor> anchors_;
   uwb::IncrementQueueGate increments_;
   double last_t_ = -1e300;

@@ -23,6 +23,7 @@ enum class RejectReason {
   kInnovation,     ///< filter innovation gate (Mahalanobis)
   kTimeBackwards,  ///< timestamp earlier than the previous one
   kOtherTag,       ///< measured by another tag (a mobile node), not by the robot's own
+  kNlosModel,      ///< an NLOS model judged it NLOS (P >= nlos_reject), or its correction failed
 };
 
 /// Stable snake_case names used in metrics.json's "rejected" map.

@@ -74,7 +74,8 @@ class RangeGraph {
   /// files store it; throws std::invalid_argument when it is not positive definite.
   void addRelativePose(int from, int to, const Eigen::Vector3d& delta,
                        const Eigen::Matrix3d& information);
-  void addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag);
+  void addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag,
+                double variance_scale = 1.0);
   /// A landmark vertex (x, y), and an observation of it from a pose (robot frame, std sigma).
   int addLandmark(const Eigen::Vector2d& initial);
   void addLandmarkObservation(int pose, int landmark, const Eigen::Vector2d& z, double sigma);
@@ -114,6 +115,7 @@ class RangeGraph {
     int pose, anchor;
     double range;
     Eigen::Vector3d tag;
+    double variance_scale;  ///< over range_sigma^2 (an NLOS model's doubt)
   };
   struct Odometry {
     int from, to;

@@ -93,6 +93,8 @@ class UwbEkf : public UwbEstimator {
                            Eigen::Matrix<double, 1, 4>* hj = nullptr);
   double dt(double t) const { return t - t_; }
   double rangeVariance() const { return params_.front.sigmaValue() * params_.front.sigmaValue(); }
+  /// The variance of this range: the method's, scaled by what an NLOS model said of it.
+  double rangeVariance(const AcceptedRange& r) const { return rangeVariance() * r.variance_scale; }
 
   UwbEkfParams params_;
   double t_ = 0.0;

@@ -1,0 +1,257 @@
+#include "uwbloc/nlos/model.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace uwbloc::nlos {
+
+namespace {
+constexpr const char* kFormat = "uwbloc-nlos-model";
+
+double snrDb(double amplitude, double noise) {
+  return amplitude > 0.0 && noise > 0.0 ? 20.0 * std::log10(amplitude / noise) : NAN;
+}
+}  // namespace
+
+FeatureSet parseFeatureSet(const std::string& name) {
+  for (FeatureSet s : {FeatureSet::kCir, FeatureSet::kCirRaw, FeatureSet::kPower,
+                       FeatureSet::kSageHusa})
+    if (name == toString(s)) return s;
+  throw DataError("unknown feature set '" + name + "' (choose cir, cir-raw, power, sagehusa)");
+}
+
+const char* toString(FeatureSet set) {
+  switch (set) {
+    case FeatureSet::kCir: return "cir";
+    case FeatureSet::kCirRaw: return "cir-raw";
+    case FeatureSet::kPower: return "power";
+    case FeatureSet::kSageHusa: return "sagehusa";
+  }
+  return "?";
+}
+
+std::vector<std::string> featureNames(FeatureSet set) {
+  switch (set) {
+    case FeatureSet::kCir:
+      return {"rx_minus_fp_db", "rx_power_dbm", "fp_power_dbm", "fp_ampl1_snr_db",
+              "fp_ampl2_snr_db", "fp_ampl3_snr_db", "pr",      "range_m",
+              "fp_ampl1_per_acc_db", "noise_per_acc_db", "fp_index_fraction"};
+    case FeatureSet::kCirRaw:
+      return {"fp_ampl1", "fp_ampl2", "fp_ampl3", "std_noise", "cir_power", "rxpacc",
+              "fp_index", "rx_power_dbm", "fp_power_dbm", "rx_minus_fp_db", "pr", "range_m"};
+    case FeatureSet::kPower:
+      return {"rx_minus_fp_db", "fp_power_dbm", "range_m"};
+    case FeatureSet::kSageHusa:
+      return {"rx_minus_fp_db", "predicted_minus_range_m"};
+  }
+  return {};
+}
+
+int featureCount(FeatureSet set) {
+  switch (set) {
+    case FeatureSet::kCir: return 11;
+    case FeatureSet::kCirRaw: return 12;
+    case FeatureSet::kPower: return 3;
+    case FeatureSet::kSageHusa: return 2;
+  }
+  return 0;
+}
+
+FeatureVector features(FeatureSet set, const Sample& s) {
+  FeatureVector x;
+  x.fill(NAN);
+  const double pd = s.rx_power_dbm - s.fp_power_dbm;
+  switch (set) {
+    case FeatureSet::kCir:
+      // Amplitudes over the noise std: both scale with the preamble accumulation count, so the
+      // ratio carries across devices configured with other preamble lengths.
+      x = {pd, s.rx_power_dbm, s.fp_power_dbm, snrDb(s.fp_ampl1, s.std_noise),
+           snrDb(s.fp_ampl2, s.std_noise), snrDb(s.fp_ampl3, s.std_noise), s.pr, s.range,
+           snrDb(s.fp_ampl1, s.rxpacc), snrDb(s.std_noise, s.rxpacc),
+           s.fp_index - std::floor(s.fp_index), NAN};
+      break;
+    case FeatureSet::kCirRaw:
+      x = {s.fp_ampl1, s.fp_ampl2, s.fp_ampl3, s.std_noise, s.cir_power, s.rxpacc,
+           s.fp_index, s.rx_power_dbm, s.fp_power_dbm, pd, s.pr, s.range};
+      break;
+    case FeatureSet::kPower:
+      x[0] = pd, x[1] = s.fp_power_dbm, x[2] = s.range;
+      break;
+    case FeatureSet::kSageHusa:
+      x[0] = pd, x[1] = s.innovation;
+      break;
+  }
+  return x;
+}
+
+Sample sampleOf(const uwb::Range& r, double innovation) {
+  Sample s;
+  s.range = r.range;
+  s.rx_power_dbm = r.rx_power_dbm.value_or(NAN);
+  s.fp_power_dbm = r.fp_power_dbm.value_or(NAN);
+  s.innovation = innovation;
+  return s;
+}
+
+double Tree::evaluate(const FeatureVector& x) const {
+  int i = 0;
+  for (size_t guard = 0; guard < feature.size(); ++guard) {
+    const int f = feature[static_cast<size_t>(i)];
+    if (f < 0) return value[static_cast<size_t>(i)];
+    const double v = x[static_cast<size_t>(f)];
+    // XGBoost compares in single precision.
+    i = std::isnan(v) ? missing[static_cast<size_t>(i)]
+        : static_cast<float>(v) < threshold[static_cast<size_t>(i)] ? yes[static_cast<size_t>(i)]
+                                                                    : no[static_cast<size_t>(i)];
+  }
+  return 0.0;  // unreachable for a well-formed tree (fromJson checks the links)
+}
+
+double Additive::evaluate(const FeatureVector& x, int n_features) const {
+  double m = offset;
+  for (const auto& t : trees) m += t.evaluate(x);
+  for (size_t j = 0; j < weights.size() && static_cast<int>(j) < n_features; ++j) {
+    const double v = std::isnan(x[j]) ? 0.0 : (x[j] - mean[j]) / scale[j];  // NaN: the mean
+    m += weights[j] * v;
+  }
+  return m;
+}
+
+Judgement Model::judge(const FeatureVector& x) const {
+  const int n = featureCount();
+  Judgement j;
+  const double margin = classifier.evaluate(x, n);
+  j.p_nlos = 1.0 / (1.0 + std::exp(-std::clamp(margin, -40.0, 40.0)));
+  j.error = regressor.evaluate(x, n);
+  if (!std::isfinite(j.error)) j.error = 0.0;
+  j.error_sigma =
+      std::sqrt((1.0 - j.p_nlos) * sigma_los * sigma_los + j.p_nlos * sigma_nlos * sigma_nlos);
+  return j;
+}
+
+namespace {
+
+nlohmann::json toJson(const Additive& a) {
+  nlohmann::json j;
+  j["offset"] = a.offset;
+  if (!a.weights.empty()) {
+    j["weights"] = a.weights;
+    j["mean"] = a.mean;
+    j["scale"] = a.scale;
+  }
+  auto trees = nlohmann::json::array();
+  for (const auto& t : a.trees)
+    trees.push_back({{"feature", t.feature}, {"threshold", t.threshold}, {"yes", t.yes},
+                     {"no", t.no}, {"missing", t.missing}, {"value", t.value}});
+  j["trees"] = trees;
+  return j;
+}
+
+Additive additiveFrom(const nlohmann::json& j, int n_features, const std::string& where) {
+  Additive a;
+  a.offset = j.at("offset").get<double>();
+  if (j.contains("weights")) {
+    a.weights = j.at("weights").get<std::vector<double>>();
+    a.mean = j.at("mean").get<std::vector<double>>();
+    a.scale = j.at("scale").get<std::vector<double>>();
+    if (static_cast<int>(a.weights.size()) != n_features || a.mean.size() != a.weights.size() ||
+        a.scale.size() != a.weights.size())
+      throw DataError(where + ": weights, mean and scale must have one entry per feature");
+    for (double s : a.scale)
+      if (!(s > 0.0)) throw DataError(where + ": a scale is not positive");
+  }
+  for (const auto& jt : j.at("trees")) {
+    Tree t;
+    t.feature = jt.at("feature").get<std::vector<int>>();
+    t.threshold = jt.at("threshold").get<std::vector<float>>();
+    t.yes = jt.at("yes").get<std::vector<int>>();
+    t.no = jt.at("no").get<std::vector<int>>();
+    t.missing = jt.at("missing").get<std::vector<int>>();
+    t.value = jt.at("value").get<std::vector<double>>();
+    const size_t n = t.feature.size();
+    if (n == 0 || t.threshold.size() != n || t.yes.size() != n || t.no.size() != n ||
+        t.missing.size() != n || t.value.size() != n)
+      throw DataError(where + ": a tree's node arrays differ in length");
+    // Children must come after their parent: a walk then always ends at a leaf.
+    for (size_t i = 0; i < n; ++i) {
+      if (t.feature[i] < 0) continue;
+      if (t.feature[i] >= n_features)
+        throw DataError(where + ": a tree splits on feature " + std::to_string(t.feature[i]) +
+                        ", beyond the feature set");
+      for (int c : {t.yes[i], t.no[i], t.missing[i]})
+        if (c <= static_cast<int>(i) || c >= static_cast<int>(n))
+          throw DataError(where + ": a tree's node " + std::to_string(i) +
+                          " links outside the tree or backwards");
+    }
+    a.trees.push_back(std::move(t));
+  }
+  return a;
+}
+
+}  // namespace
+
+std::string Model::toJson() const {
+  nlohmann::json j;
+  j["format"] = kFormat;
+  j["version"] = 1;
+  j["kind"] = kind == Kind::kTrees ? "trees" : "logistic";
+  j["objective"] = objective;
+  j["features"] = toString(set);
+  j["feature_names"] = featureNames(set);
+  j["classifier"] = nlos::toJson(classifier);
+  j["regressor"] = nlos::toJson(regressor);
+  j["error_sigma"] = {{"los", sigma_los}, {"nlos", sigma_nlos}};
+  j["trained_on"] = trained_on;
+  j["training_rows"] = training_rows;
+  return j.dump();
+}
+
+Model Model::fromJson(const std::string& text, const std::string& source) {
+  Model m;
+  try {
+    const auto j = nlohmann::json::parse(text);
+    if (j.value("format", "") != kFormat)
+      throw DataError(source + ": not an uwbloc NLOS model (field 'format' is not '" +
+                      std::string(kFormat) + "')");
+    const std::string kind = j.at("kind").get<std::string>();
+    if (kind != "trees" && kind != "logistic")
+      throw DataError(source + ": field 'kind' must be 'trees' or 'logistic'");
+    m.kind = kind == "trees" ? Kind::kTrees : Kind::kLogistic;
+    m.objective = j.value("objective", "");
+    m.set = parseFeatureSet(j.at("features").get<std::string>());
+    m.classifier = additiveFrom(j.at("classifier"), m.featureCount(), source + ": classifier");
+    m.regressor = additiveFrom(j.at("regressor"), m.featureCount(), source + ": regressor");
+    m.sigma_los = j.at("error_sigma").at("los").get<double>();
+    m.sigma_nlos = j.at("error_sigma").at("nlos").get<double>();
+    if (!(m.sigma_los > 0.0) || !(m.sigma_nlos > 0.0))
+      throw DataError(source + ": error_sigma must be positive");
+    m.trained_on = j.value("trained_on", std::vector<std::string>{});
+    m.training_rows = j.value("training_rows", 0L);
+  } catch (const nlohmann::json::exception& e) {
+    throw DataError(source + ": " + e.what());
+  }
+  return m;
+}
+
+void Model::save(const std::string& path) const {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw DataError(path + ": cannot write");
+    out << toJson() << "\n";
+    if (!out) throw DataError(path + ": write failed");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw DataError(path + ": cannot write");
+}
+
+Model Model::load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw DataError(path + ": cannot open the NLOS model");
+  std::stringstream buf;
+  buf << in.rdbuf();
+  return fromJson(buf.str(), path);
+}
+
+}  // namespace uwbloc::nlos
