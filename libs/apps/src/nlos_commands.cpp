@@ -76,17 +76,25 @@ void NlosCommand::declare(CLI::App& parser) {
         ->required();
     c->add_option("--data-dir", data_dir_, "folder of public datasets");
   };
-  auto training = [&](CLI::App* c) {
+  auto training = [&](CLI::App* c, const std::string& types_help) {
+    c->add_option("--model-type", model_types_, types_help)->capture_default_str();
     c->add_option("--features", features_,
                   "feature set: auto (cir when every file has CIR diagnostics, else power), cir "
                   "(normalised for transfer), cir-raw, power (what a range carries: received "
                   "minus first-path power, first-path power, range), sagehusa")
         ->capture_default_str();
-    c->add_option("--rounds", base_.rounds, "boosting rounds")->capture_default_str();
-    c->add_option("--depth", base_.depth, "tree depth")->capture_default_str();
-    c->add_option("--eta", base_.eta, "learning rate")->capture_default_str();
+    c->add_option("--rounds", base_.rounds, "boosting rounds")
+        ->check(CLI::Range(1, 10000))
+        ->capture_default_str();
+    c->add_option("--depth", base_.depth, "tree depth")
+        ->check(CLI::Range(1, 16))
+        ->capture_default_str();
+    c->add_option("--eta", base_.eta, "learning rate")
+        ->check(CLI::Range(1e-4, 1.0))
+        ->capture_default_str();
     c->add_option("--min-child-weight", base_.min_child_weight,
                   "smallest Hessian sum in a leaf (larger: smoother trees)")
+        ->check(CLI::Range(0.0, 1e6))
         ->capture_default_str();
     c->add_option("--seed", base_.seed, "random seed (row subsampling, folds, target draws)")
         ->capture_default_str();
@@ -94,11 +102,9 @@ void NlosCommand::declare(CLI::App& parser) {
 
   train_ = subcommand_->add_subcommand("train", "Train a model and save it as JSON");
   data(train_, true);
-  training(train_);
-  train_->add_option("--model-type", model_types_,
-                     "trees-density (boosted trees, the density-weighted loss), trees-logistic "
-                     "(plain log-loss) or logreg (logistic regression)")
-      ->capture_default_str();
+  training(train_,
+           "trees-density (boosted trees, the density-weighted loss), trees-logistic (plain "
+           "log-loss) or logreg (logistic regression)");
   train_->add_option("--out,-o", out_, "model file (JSON)")->required();
 
   eval_ = subcommand_->add_subcommand(
@@ -110,25 +116,27 @@ void NlosCommand::declare(CLI::App& parser) {
       "cv", "Cross-validate within each file: folds grouped by location (and shuffled, for "
             "contrast)");
   data(cv_, true);
-  training(cv_);
-  cv_->add_option("--model-type", model_types_, "comma-separated list of model types")
+  training(cv_, "comma-separated list of model types");
+  cv_->add_option("--folds", folds_, "number of folds")
+      ->check(CLI::Range(2, 100))
       ->capture_default_str();
-  cv_->add_option("--folds", folds_, "number of folds")->capture_default_str();
 
   cross_ = subcommand_->add_subcommand(
       "cross", "Across environments: train on all files but one, test on the one left out, "
                "zero-shot and with k target rows added to training");
   data(cross_, true);
-  training(cross_);
-  cross_->add_option("--model-type", model_types_, "comma-separated list of model types")
-      ->capture_default_str();
+  training(cross_, "comma-separated list of model types");
   cross_->add_option("--k", shots_, "target rows added to training (comma-separated)")
       ->delimiter(',')
+      ->check(CLI::Range(0, 1000000))
       ->capture_default_str();
   cross_->add_option("--target-weight", target_weight_,
-                     "weight of each target row; 0: the source rows' count over k (the k rows weigh as much as the source)")
+                     "weight of each target row; 0: the source rows' count over k (the k rows "
+                     "weigh as much as the source)")
+      ->check(CLI::Range(0.0, 1e9))
       ->capture_default_str();
-  cross_->add_option("--repeats", repeats_, "target draws per k > 0 (the mean is printed)")
+  cross_->add_option("--repeats", repeats_, "target draws per k > 0 (their judgements pooled)")
+      ->check(CLI::Range(1, 1000))
       ->capture_default_str();
 }
 

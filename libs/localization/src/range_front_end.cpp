@@ -36,7 +36,6 @@ bool RangeFrontEnd::judge(AcceptedRange& r) {
   }
   const nlos::Judgement j = nlos_->judge(nlos::sampleOf(m));
   m.nlos_probability = j.p_nlos;
-  if (j.p_nlos >= params_.nlos_reject) return false;
   const double sigma = params_.sigmaValue();
   switch (params_.nlos_use) {
     case NlosUse::kWeight:
@@ -54,6 +53,7 @@ bool RangeFrontEnd::judge(AcceptedRange& r) {
       break;
     }
     case NlosUse::kReject:
+      if (j.p_nlos >= params_.nlos_reject) return false;
       r.nlos_decision = "nlos_model_kept";
       break;
   }

@@ -128,24 +128,19 @@ Table readGhent(const std::string& path) {
   if (est < 0) fail(path, 1, "missing column 'estimated_range'");
   if (truth < 0) fail(path, 1, "missing column 'distance_GT' or 'real_rng' (the true range)");
   if (label < 0) fail(path, 1, "missing column 'label'");
-  const int c_a1 = csv.column("fp_ampl1"), c_a2 = csv.column("fp_ampl2"),
-            c_a3 = csv.column("fp_ampl3"), c_noise = csv.column("std_noise"),
-            c_cir = csv.column("CIRpower"), c_acc = csv.column("RXPACC"),
-            c_fpi = csv.column("fpindex"), c_rx = csv.column("RX_power"),
-            c_fp = csv.column("FP_power"), c_pr = csv.column("Pr"),
-            c_from = csv.column("location_from"), c_to = csv.column("location_to");
+  // The diagnostics, each from its column when the file has it (NaN otherwise).
+  const std::pair<double Sample::*, const char*> diagnostics[] = {
+      {&Sample::fp_ampl1, "fp_ampl1"},         {&Sample::fp_ampl2, "fp_ampl2"},
+      {&Sample::fp_ampl3, "fp_ampl3"},         {&Sample::std_noise, "std_noise"},
+      {&Sample::cir_power, "CIRpower"},        {&Sample::rxpacc, "RXPACC"},
+      {&Sample::fp_index, "fpindex"},          {&Sample::rx_power_dbm, "RX_power"},
+      {&Sample::fp_power_dbm, "FP_power"},     {&Sample::pr, "Pr"}};
+  std::vector<int> cols;
+  for (const auto& d : diagnostics) cols.push_back(csv.column(d.second));
+  const int c_from = csv.column("location_from"), c_to = csv.column("location_to");
   for (const auto& row : csv.rows) {
     Sample s;
-    s.fp_ampl1 = csv.number(row, c_a1);
-    s.fp_ampl2 = csv.number(row, c_a2);
-    s.fp_ampl3 = csv.number(row, c_a3);
-    s.std_noise = csv.number(row, c_noise);
-    s.cir_power = csv.number(row, c_cir);
-    s.rxpacc = csv.number(row, c_acc);
-    s.fp_index = csv.number(row, c_fpi);
-    s.rx_power_dbm = csv.number(row, c_rx);
-    s.fp_power_dbm = csv.number(row, c_fp);
-    s.pr = csv.number(row, c_pr);
+    for (size_t k = 0; k < cols.size(); ++k) s.*(diagnostics[k].first) = csv.number(row, cols[k]);
     s.range = csv.number(row, est);
     s.true_range = csv.number(row, truth);
     s.label = parseLabel(csv, row, label);

@@ -133,8 +133,13 @@ Additive boost(const Matrix& m, const std::vector<float>& target, const std::vec
     // efficiency on Gaussian errors), linear beyond, so that a few ranges metres off (multipath,
     // a reference glitch) do not drag the expectation for all; started at the median error.
     const std::vector<double> t(target.begin(), target.end());
-    b.param("huber_slope", std::to_string(std::max(1.345 * robustStd(t), 0.01)));
+    const double slope = std::max(1.345 * robustStd(t), 0.01);
+    b.param("huber_slope", std::to_string(slope));
     b.param("base_score", std::to_string(median(t)));
+    // The pseudo-Huber Hessian vanishes far out, and a Newton leaf step g/h then explodes
+    // (heavily weighted rows made the expectation metres long): no leaf moves by more than the
+    // slope in one round.
+    b.param("max_delta_step", std::to_string(slope));
   } else {
     b.param("base_score", "0.5");
   }

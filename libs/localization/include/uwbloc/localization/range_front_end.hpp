@@ -20,7 +20,7 @@ namespace uwbloc::loc {
 
 /// What the front end does with a range that an NLOS model judged (nlos_model=PATH).
 enum class NlosUse {
-  kWeight,   ///< widen the range's variance by 1 / (1 - P(NLOS))
+  kWeight,   ///< widen the range's variance by 1 / (1 - P(NLOS)), P capped at 0.99
   kCorrect,  ///< subtract the predicted error; add its variance to the range's
   kReject,   ///< drop the range when P(NLOS) >= nlos_reject
 };
@@ -42,7 +42,7 @@ struct RangeFrontEndParams {
   double iq_floor = 0.3;       ///< increment tolerance for noise [m]
   std::string nlos_model;      ///< NLOS model file (uwbloc nlos train); empty: none
   NlosUse nlos_use = NlosUse::kWeight;
-  double nlos_reject = 0.9;    ///< P(NLOS) at which a range is dropped (every use) [-]
+  double nlos_reject = 0.9;    ///< P(NLOS) at which nlos_use=reject drops a range [-]
 
   /// The fixed std, or the starting one when auto.
   double sigmaValue() const { return sigma.value.value_or(kStartRangeSigma); }
@@ -64,7 +64,7 @@ struct RangeFrontEndParams {
     v("nlos_use", nlos_use,
       "what the model's judgement does: weight (variance / (1 - P(NLOS))), correct (subtract "
       "the predicted error) or reject (drop at nlos_reject)");
-    v("nlos_reject", nlos_reject, "P(NLOS) at which a judged range is dropped");
+    v("nlos_reject", nlos_reject, "P(NLOS) at which nlos_use=reject drops a range");
   }
 };
 
