@@ -134,12 +134,18 @@ Additive boost(const Matrix& m, const std::vector<float>& target, const std::vec
     // a reference glitch) do not drag the expectation for all; started at the median error.
     const std::vector<double> t(target.begin(), target.end());
     const double slope = std::max(1.345 * robustStd(t), 0.01);
+    const double mid = median(t);
     b.param("huber_slope", std::to_string(slope));
-    b.param("base_score", std::to_string(median(t)));
+    b.param("base_score", std::to_string(mid));
     // The pseudo-Huber Hessian vanishes far out, and a Newton leaf step g/h then explodes
     // (heavily weighted rows made the expectation metres long): no leaf moves by more than the
-    // slope in one round.
-    b.param("max_delta_step", std::to_string(slope));
+    // errors' own reach, the 99th percentile of |error - median|.
+    std::vector<double> reach;
+    for (double v : t) reach.push_back(std::abs(v - mid));
+    std::nth_element(reach.begin(), reach.begin() + static_cast<long>(0.99 * (reach.size() - 1)),
+                     reach.end());
+    b.param("max_delta_step",
+            std::to_string(std::max(reach[static_cast<size_t>(0.99 * (reach.size() - 1))], slope)));
   } else {
     b.param("base_score", "0.5");
   }
