@@ -1,7 +1,9 @@
 // libFuzzer target: the text readers that take a file (anchors CSV, the three ground-truth forms,
-// manifests), fed one input through a scratch file.
+// manifests, the labelled-range files and NLOS model files), fed one input through a scratch
+// file.
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <string>
@@ -9,6 +11,7 @@
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/manifest.hpp"
+#include "uwbloc/nlos/model.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const std::string path = "/tmp/uwbloc_fuzz_" + std::to_string(getpid()) + ".txt";
@@ -27,5 +30,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   guarded([&] { uwbloc::data::readGroundTruth(path, GroundTruthFormat::kTimeXyPhi); });
   guarded([&] { uwbloc::data::readGroundTruth(path, GroundTruthFormat::kStepXyPhi, steps); });
   guarded([&] { uwbloc::data::loadManifest(path, ""); });
+  try {
+    uwbloc::nlos::readLabelledRanges(path);
+  } catch (const uwbloc::nlos::DataError&) {
+  }
+  try {
+    // A model that loads must judge any range without a NaN.
+    const auto model = uwbloc::nlos::Model::fromJson(
+        std::string(reinterpret_cast<const char*>(data), size), "fuzz");
+    uwbloc::nlos::Sample s;
+    s.range = 5.0, s.rx_power_dbm = -80.0, s.fp_power_dbm = -84.0;
+    const auto j = model.judge(s);
+    if (!std::isfinite(j.p_nlos) || !std::isfinite(j.error) || !std::isfinite(j.error_sigma))
+      __builtin_trap();
+  } catch (const uwbloc::nlos::DataError&) {
+  }
   return 0;
 }

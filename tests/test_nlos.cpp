@@ -121,6 +121,13 @@ TEST(NlosModel, RejectsMalformedModelFiles) {
       [&] { nlos::Model::fromJson(bad, "m.json"); }, {"m.json", "backwards"});
   test::expectErrorMentions<nlos::DataError>(
       [&] { nlos::Model::fromJson("{\"format\": \"x\"}", "m.json"); }, {"m.json", "format"});
+  // A threshold beyond a float's range would convert undefinedly: refused by name.
+  std::string huge = json;
+  const auto th = huge.find("\"threshold\":[");
+  ASSERT_NE(th, std::string::npos);
+  huge.insert(th + 13, "1e300,");
+  test::expectErrorMentions<nlos::DataError>([&] { nlos::Model::fromJson(huge, "m.json"); },
+                                             {"m.json", "threshold", "out of range"});
   test::expectErrorMentions<nlos::DataError>([&] { nlos::Model::load((dir / "none").string()); },
                                              {"none", "cannot open"});
 }

@@ -122,7 +122,8 @@ double Additive::evaluate(const FeatureVector& x, int n_features) const {
 Judgement Model::judge(const FeatureVector& x) const {
   const int n = featureCount();
   Judgement j;
-  const double margin = classifier.evaluate(x, n);
+  double margin = classifier.evaluate(x, n);
+  if (std::isnan(margin)) margin = 0.0;  // a model that overflows says nothing (P = 0.5)
   j.p_nlos = 1.0 / (1.0 + std::exp(-std::clamp(margin, -40.0, 40.0)));
   j.error = regressor.evaluate(x, n);
   if (!std::isfinite(j.error)) j.error = 0.0;
@@ -149,13 +150,41 @@ nlohmann::json toJson(const Additive& a) {
   return j;
 }
 
+// A JSON array of numbers, each finite and within [lo, hi] (a float's or an int's range: the
+// conversion of a number beyond it would be undefined).
+std::vector<double> numbers(const nlohmann::json& j, const char* key, double lo, double hi,
+                            const std::string& where) {
+  const auto& a = j.at(key);
+  if (!a.is_array()) throw DataError(where + ": '" + key + "' must be an array");
+  std::vector<double> out;
+  out.reserve(a.size());
+  for (const auto& v : a) {
+    if (!v.is_number()) throw DataError(where + ": '" + key + "' holds a non-number");
+    const double x = v.get<double>();
+    if (!std::isfinite(x) || x < lo || x > hi)
+      throw DataError(where + ": '" + key + "' holds " + v.dump() + ", out of range");
+    out.push_back(x);
+  }
+  return out;
+}
+
+std::vector<int> integers(const nlohmann::json& j, const char* key, const std::string& where) {
+  std::vector<int> out;
+  for (double x : numbers(j, key, -1e9, 1e9, where)) {
+    if (x != std::floor(x)) throw DataError(where + ": '" + key + "' holds a non-integer");
+    out.push_back(static_cast<int>(x));
+  }
+  return out;
+}
+
 Additive additiveFrom(const nlohmann::json& j, int n_features, const std::string& where) {
   Additive a;
   a.offset = j.at("offset").get<double>();
+  if (!std::isfinite(a.offset)) throw DataError(where + ": 'offset' is not finite");
   if (j.contains("weights")) {
-    a.weights = j.at("weights").get<std::vector<double>>();
-    a.mean = j.at("mean").get<std::vector<double>>();
-    a.scale = j.at("scale").get<std::vector<double>>();
+    a.weights = numbers(j, "weights", -1e300, 1e300, where);
+    a.mean = numbers(j, "mean", -1e300, 1e300, where);
+    a.scale = numbers(j, "scale", -1e300, 1e300, where);
     if (static_cast<int>(a.weights.size()) != n_features || a.mean.size() != a.weights.size() ||
         a.scale.size() != a.weights.size())
       throw DataError(where + ": weights, mean and scale must have one entry per feature");
@@ -164,12 +193,13 @@ Additive additiveFrom(const nlohmann::json& j, int n_features, const std::string
   }
   for (const auto& jt : j.at("trees")) {
     Tree t;
-    t.feature = jt.at("feature").get<std::vector<int>>();
-    t.threshold = jt.at("threshold").get<std::vector<float>>();
-    t.yes = jt.at("yes").get<std::vector<int>>();
-    t.no = jt.at("no").get<std::vector<int>>();
-    t.missing = jt.at("missing").get<std::vector<int>>();
-    t.value = jt.at("value").get<std::vector<double>>();
+    t.feature = integers(jt, "feature", where);
+    for (double x : numbers(jt, "threshold", -3.4e38, 3.4e38, where))
+      t.threshold.push_back(static_cast<float>(x));
+    t.yes = integers(jt, "yes", where);
+    t.no = integers(jt, "no", where);
+    t.missing = integers(jt, "missing", where);
+    t.value = numbers(jt, "value", -1e300, 1e300, where);
     const size_t n = t.feature.size();
     if (n == 0 || t.threshold.size() != n || t.yes.size() != n || t.no.size() != n ||
         t.missing.size() != n || t.value.size() != n)
@@ -225,10 +255,11 @@ Model Model::fromJson(const std::string& text, const std::string& source) {
     m.regressor = additiveFrom(j.at("regressor"), m.featureCount(), source + ": regressor");
     m.sigma_los = j.at("error_sigma").at("los").get<double>();
     m.sigma_nlos = j.at("error_sigma").at("nlos").get<double>();
-    if (!(m.sigma_los > 0.0) || !(m.sigma_nlos > 0.0))
-      throw DataError(source + ": error_sigma must be positive");
+    if (!(m.sigma_los > 0.0 && m.sigma_los < 1e6) || !(m.sigma_nlos > 0.0 && m.sigma_nlos < 1e6))
+      throw DataError(source + ": error_sigma must be positive and finite");
     m.trained_on = j.value("trained_on", std::vector<std::string>{});
-    m.training_rows = j.value("training_rows", 0L);
+    if (j.contains("training_rows") && j.at("training_rows").is_number_integer())
+      m.training_rows = j.at("training_rows").get<long>();
   } catch (const nlohmann::json::exception& e) {
     throw DataError(source + ": " + e.what());
   }
