@@ -3,31 +3,12 @@
 // DW1000 data (received minus first-path power, first-path power, range), labelled with noise.
 #include <benchmark/benchmark.h>
 
-#include <cmath>
-#include <random>
-
+#include "nlos_synthetic.hpp"
 #include "uwbloc/nlos/train.hpp"
 
 using namespace uwbloc;
 
 namespace {
-
-nlos::Table rows(int n) {
-  std::mt19937_64 rng(1);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  nlos::Table t;
-  for (int i = 0; i < n; ++i) {
-    nlos::Sample s;
-    const double pd = 12.0 * u(rng);
-    s.label = u(rng) < 1.0 / (1.0 + std::exp(-(pd - 6.0)));
-    s.fp_power_dbm = -95.0 + 15.0 * u(rng);
-    s.rx_power_dbm = s.fp_power_dbm + pd;
-    s.true_range = 1.0 + 30.0 * u(rng);
-    s.range = s.true_range + (s.label ? 0.6 * u(rng) : 0.05 * (u(rng) - 0.5));
-    t.rows.push_back(s);
-  }
-  return t;
-}
 
 nlos::TrainParams params(int kind) {
   nlos::TrainParams p;
@@ -39,14 +20,14 @@ nlos::TrainParams params(int kind) {
 
 // Arg: 0 trees-density, 1 trees-logistic, 2 logreg.
 void BM_Train10k(benchmark::State& state) {
-  const auto t = rows(10000);
+  const auto t = test::softNlosRows(10000, 1);
   const auto p = nlos::pointers(t);
   for (auto _ : state) benchmark::DoNotOptimize(nlos::train(p, params(static_cast<int>(state.range(0)))));
 }
 BENCHMARK(BM_Train10k)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 void BM_JudgeOneRange(benchmark::State& state) {
-  const auto t = rows(10000);
+  const auto t = test::softNlosRows(10000, 1);
   const auto model = nlos::train(nlos::pointers(t), params(static_cast<int>(state.range(0))));
   uwb::Range r;
   r.range = 7.5;

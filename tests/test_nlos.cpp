@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "simulated_scenario.hpp"
+#include "nlos_synthetic.hpp"
 #include "test_helpers.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
@@ -36,25 +37,6 @@ nlos::Table separable(int n, uint64_t seed) {
     s.true_range = 2.0 + 20.0 * u(rng);
     s.range = s.true_range + (s.label ? 0.5 : 0.0) + 0.02 * (u(rng) - 0.5);
     s.group = std::to_string(i / 10);
-    t.rows.push_back(s);
-  }
-  return t;
-}
-
-// Rows whose NLOS odds grow smoothly with received minus first-path power: P(NLOS) =
-// 1 / (1 + exp(-(pd - 6))); NLOS ranges read 0.5 m long.
-nlos::Table soft(int n, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  nlos::Table t;
-  for (int i = 0; i < n; ++i) {
-    nlos::Sample s;
-    const double pd = 12.0 * u(rng);
-    s.label = u(rng) < 1.0 / (1.0 + std::exp(-(pd - 6.0)));
-    s.fp_power_dbm = -90.0 + 10.0 * u(rng);
-    s.rx_power_dbm = s.fp_power_dbm + pd;
-    s.true_range = 2.0 + 20.0 * u(rng);
-    s.range = s.true_range + (s.label ? 0.5 : 0.0);
     t.rows.push_back(s);
   }
   return t;
@@ -130,6 +112,11 @@ TEST(NlosModel, RejectsMalformedModelFiles) {
                                              {"m.json", "threshold", "out of range"});
   test::expectErrorMentions<nlos::DataError>([&] { nlos::Model::load((dir / "none").string()); },
                                              {"none", "cannot open"});
+  // A device or a folder is no model file (a device would be read for ever).
+  test::expectErrorMentions<nlos::DataError>([&] { nlos::Model::load("/dev/zero"); },
+                                             {"/dev/zero", "not a regular file"});
+  test::expectErrorMentions<nlos::DataError>([&] { nlos::readLabelledRanges(dir.string()); },
+                                             {dir.string(), "not a regular file"});
 }
 
 TEST(NlosReaders, GhentUniversityQuirks) {
@@ -259,7 +246,8 @@ std::optional<loc::AcceptedRange> judged(const std::string& path, loc::NlosUse u
 TEST(NlosFrontEnd, WeightsCorrectsAndRejectsByTheModel) {
   const auto dir = test::scratchDir();
   const auto path = (dir / "m.json").string();
-  nlos::train(nlos::pointers(soft(4000, 7)), params(nlos::Model::Kind::kLogistic, "irls"))
+  nlos::train(nlos::pointers(test::softNlosRows(4000, 7)),
+              params(nlos::Model::Kind::kLogistic, "irls"))
       .save(path);
   // LOS-looking range: nearly untouched.
   const auto los = judged(path, loc::NlosUse::kWeight, 2.0);

@@ -278,6 +278,7 @@ void Model::save(const std::string& path) const {
 }
 
 Model Model::load(const std::string& path) {
+  requireRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw DataError(path + ": cannot open the NLOS model");
   std::stringstream buf;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -66,6 +67,7 @@ struct Csv {
 };
 
 Csv readCsv(const std::string& path) {
+  requireRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, 0, "cannot open");
   Csv csv;
@@ -117,6 +119,14 @@ int parseLabel(const Csv& csv, const std::pair<int, std::vector<std::string>>& r
 }
 
 }  // namespace
+
+void requireRegularFile(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) fail(path, 0, "cannot open: no such file");
+  // A FIFO would block a reader for ever, a device would never end.
+  if (!std::filesystem::is_regular_file(status)) fail(path, 0, "cannot open: not a regular file");
+}
 
 Table readGhent(const std::string& path) {
   const Csv csv = readCsv(path);
@@ -211,6 +221,7 @@ Table readRangeFeatures(const std::string& path) {
 }
 
 Table readLabelledRanges(const std::string& path) {
+  requireRegularFile(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, 0, "cannot open");
   std::string first;

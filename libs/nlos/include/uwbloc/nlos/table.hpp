@@ -60,6 +60,9 @@ Table readGhent(const std::string& path);
 /// the importer had a reference: true_range, error, nlos). Groups are anchor x 10 s of time.
 Table readRangeFeatures(const std::string& path);
 
+/// Throws DataError unless `path` is a regular file (a FIFO or a device would never end).
+void requireRegularFile(const std::string& path);
+
 /// Either reader, chosen by the file's header.
 Table readLabelledRanges(const std::string& path);
 
