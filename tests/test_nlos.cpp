@@ -254,7 +254,7 @@ TEST(NlosFrontEnd, WeightsCorrectsAndRejectsByTheModel) {
   ASSERT_TRUE(los);
   EXPECT_LT(*los->measurement.nlos_probability, 0.05);
   EXPECT_LT(los->variance_scale, 1.06);
-  EXPECT_STREQ(los->nlos_decision, "nlos_model_weighted");
+  EXPECT_STREQ(los->nlos_decision, "nlos_weighted");
   // An NLOS-looking range is weighted by 1 / (1 - p) (p capped at 0.99) ...
   const auto w = judged(path, loc::NlosUse::kWeight, 6.5);
   ASSERT_TRUE(w);
@@ -367,7 +367,7 @@ TEST(NlosSimulated, FiltersThatWeightByTheModelBeatThemselves) {
     std::printf("[ NLOS SIM ] %s %.3f -> %.3f m\n", m.c_str(), plain.metrics.rmse_2d,
                 judged.metrics.rmse_2d);
     EXPECT_LT(judged.metrics.rmse_2d, 0.95 * plain.metrics.rmse_2d) << m;
-    ASSERT_TRUE(judged.events.count("nlos_model_weighted")) << m;
-    EXPECT_GT(judged.events.at("nlos_model_weighted"), 2000) << m;
+    ASSERT_TRUE(judged.events.count("nlos_weighted")) << m;
+    EXPECT_GT(judged.events.at("nlos_weighted"), 2000) << m;
   }
 }

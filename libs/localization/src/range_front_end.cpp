@@ -31,7 +31,7 @@ RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb:
 bool RangeFrontEnd::judge(AcceptedRange& r) {
   auto& m = r.measurement;
   if (!m.rx_power_dbm || !m.fp_power_dbm) {
-    r.nlos_decision = "nlos_model_no_features";
+    r.nlos_decision = "nlos_no_powers";
     return true;
   }
   const nlos::Judgement j = nlos_->judge(nlos::sampleOf(m));
@@ -40,7 +40,7 @@ bool RangeFrontEnd::judge(AcceptedRange& r) {
   switch (params_.nlos_use) {
     case NlosUse::kWeight:
       r.variance_scale = 1.0 / (1.0 - std::min(j.p_nlos, 0.99));
-      r.nlos_decision = "nlos_model_weighted";
+      r.nlos_decision = "nlos_weighted";
       break;
     case NlosUse::kCorrect: {
       m.range -= j.error;
@@ -49,12 +49,12 @@ bool RangeFrontEnd::judge(AcceptedRange& r) {
       if (!planar) return false;
       r.planar = *planar;
       r.variance_scale = 1.0 + (j.error_sigma * j.error_sigma) / (sigma * sigma);
-      r.nlos_decision = "nlos_model_corrected";
+      r.nlos_decision = "nlos_corrected";
       break;
     }
     case NlosUse::kReject:
       if (j.p_nlos >= params_.nlos_reject) return false;
-      r.nlos_decision = "nlos_model_kept";
+      r.nlos_decision = "nlos_kept";
       break;
   }
   return true;

@@ -75,7 +75,8 @@ struct AcceptedRange {
   double planar = 0.0;     ///< height-projected range, eq. (3) [m]
   /// The range's variance over the method's own (> 1: an NLOS model doubts it).
   double variance_scale = 1.0;
-  /// What an NLOS model did to it ("nlos_model_weighted", ...), for the statistics; or null.
+  /// What an NLOS model did to it ("nlos_weighted", ...), for the statistics; or null. The names
+  /// fit std::string's small buffer: counting them allocates nothing per range.
   const char* nlos_decision = nullptr;
 };
 
