@@ -231,7 +231,12 @@ std::optional<loc::AcceptedRange> judged(const std::string& path, loc::NlosUse u
   p.nlos_model = "model:" + path;
   p.nlos_use = use;
   p.increment_gate = false;
-  loc::RangeFrontEnd front(p, {{1, Eigen::Vector3d(0, 0, 0)}});
+  loc::EstimatorContext context;
+  context.anchors = {{1, Eigen::Vector3d(0, 0, 0)}};
+  context.nlos_models = [](const std::string& file) {
+    return std::make_shared<const nlos::Model>(nlos::Model::load(file));
+  };
+  loc::RangeFrontEnd front(p, context.anchors, loc::resolveNlosModel(p, context));
   uwb::Range r;
   r.t = 1.0;
   r.anchor_id = 1;

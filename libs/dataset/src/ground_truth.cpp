@@ -1,10 +1,12 @@
 #include "uwbloc/dataset/ground_truth.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/uwb/pose2.hpp"
 
 namespace uwbloc::data {
 
@@ -68,6 +70,21 @@ std::string formatTum(const std::vector<TimedPose>& poses) {
     out += buf;
   }
   return out;
+}
+
+std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<TimedPose>& gt, double t,
+                                                      double max_gap) {
+  if (gt.empty() || t < gt.front().t || t > gt.back().t) return std::nullopt;
+  auto hi = std::lower_bound(gt.begin(), gt.end(), t,
+                             [](const TimedPose& p, double v) { return p.t < v; });
+  if (hi->t == t) return hi->pose;
+  const auto lo = hi - 1;
+  const double span = hi->t - lo->t;
+  if (span > max_gap || span <= 0.0) return std::nullopt;
+  const double a = (t - lo->t) / span;
+  Eigen::Vector3d p = lo->pose + a * (hi->pose - lo->pose);
+  p.z() = uwbloc::wrapAngle(lo->pose.z() + a * uwbloc::wrapAngle(hi->pose.z() - lo->pose.z()));
+  return p;
 }
 
 }  // namespace uwbloc::data

@@ -14,6 +14,7 @@
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/uwb/range_model.hpp"
 
 namespace fs = std::filesystem;
 
@@ -125,21 +126,6 @@ std::vector<TimedPose> readReference(const std::string& trajectory,
   return gt;
 }
 
-// The reference pose at t, linearly interpolated (heading along the shorter arc); nothing
-// outside the reference or across a gap longer than a second.
-std::optional<Eigen::Vector3d> referenceAt(const std::vector<TimedPose>& gt, double t) {
-  const auto it = std::lower_bound(gt.begin(), gt.end(), t,
-                                   [](const TimedPose& p, double v) { return p.t < v; });
-  if (it == gt.end()) return std::nullopt;
-  if (it->t == t) return it->pose;
-  if (it == gt.begin() || it->t - (it - 1)->t > 1.0) return std::nullopt;
-  const TimedPose& a = *(it - 1);
-  const double u = (t - a.t) / (it->t - a.t);
-  Eigen::Vector3d p = a.pose + u * (it->pose - a.pose);
-  p.z() = a.pose.z() + u * loc::wrapAngle(it->pose.z() - a.pose.z());
-  return p;
-}
-
 struct LabelSample {
   Eigen::Vector3d pose;  // reference
   Eigen::Vector3d anchor;
@@ -148,6 +134,13 @@ struct LabelSample {
   size_t event;
 };
 
+// The sample's distance from the tag, at `lever` on the robot and at the tag height, to its
+// anchor.
+double trueRange(const LabelSample& s, const Eigen::Vector2d& lever, double tag_height) {
+  return (uwb::tagPosition(s.pose, Eigen::Vector3d(lever.x(), lever.y(), tag_height)) - s.anchor)
+      .norm();
+}
+
 // |error - the anchor's median error| of every sample, with the tag at `lever` in the body
 // frame; the anchor medians (constant biases: antenna delays) into `bias`.
 std::vector<double> deviations(const std::vector<LabelSample>& s, const Eigen::Vector2d& lever,
@@ -155,10 +148,7 @@ std::vector<double> deviations(const std::vector<LabelSample>& s, const Eigen::V
   std::map<int, std::vector<double>> by_anchor;
   std::vector<double> err(s.size());
   for (size_t i = 0; i < s.size(); ++i) {
-    const double c = std::cos(s[i].pose.z()), sn = std::sin(s[i].pose.z());
-    const Eigen::Vector3d tag(s[i].pose.x() + c * lever.x() - sn * lever.y(),
-                              s[i].pose.y() + sn * lever.x() + c * lever.y(), tag_height);
-    err[i] = s[i].range - (tag - s[i].anchor).norm();
+    err[i] = s[i].range - trueRange(s[i], lever, tag_height);
     by_anchor[s[i].anchor_id].push_back(err[i]);
   }
   std::map<int, double> med;
@@ -192,7 +182,7 @@ std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
   for (size_t i = 0; i < events.size(); ++i) {
     const auto* r = std::get_if<uwb::Range>(&events[i]);
     if (!r) continue;
-    const auto p = referenceAt(gt, r->t);
+    const auto p = interpolateGroundTruth(gt, r->t, 1.0);  // not across a gap over 1 s
     const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
     if (p && a) samples.push_back({*p, a->position, r->range, r->anchor_id, i});
   }
@@ -214,10 +204,7 @@ std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
   long nlos = 0;
   for (size_t k = 0; k < samples.size(); ++k) {
     const auto& s = samples[k];
-    const double c = std::cos(s.pose.z()), sn = std::sin(s.pose.z());
-    const Eigen::Vector3d tag(s.pose.x() + c * lever.x() - sn * lever.y(),
-                              s.pose.y() + sn * lever.x() + c * lever.y(), tag_height);
-    labels[s.event].true_range = (tag - s.anchor).norm();
+    labels[s.event].true_range = trueRange(s, lever, tag_height);
     labels[s.event].nlos = dev[k] > threshold;
     nlos += labels[s.event].nlos;
   }

@@ -7,21 +7,6 @@
 
 namespace uwbloc::eval {
 
-std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<data::TimedPose>& gt,
-                                                      double t, double max_gap) {
-  if (gt.empty() || t < gt.front().t || t > gt.back().t) return std::nullopt;
-  auto hi = std::lower_bound(gt.begin(), gt.end(), t,
-                             [](const data::TimedPose& p, double v) { return p.t < v; });
-  if (hi->t == t) return hi->pose;
-  const auto lo = hi - 1;
-  const double span = hi->t - lo->t;
-  if (span > max_gap || span <= 0.0) return std::nullopt;
-  const double a = (t - lo->t) / span;
-  Eigen::Vector3d p = lo->pose + a * (hi->pose - lo->pose);
-  p.z() = loc::wrapAngle(lo->pose.z() + a * loc::wrapAngle(hi->pose.z() - lo->pose.z()));
-  return p;
-}
-
 std::vector<ErrorSample> associate(const std::vector<loc::PoseEstimate>& estimates,
                                    const std::vector<data::TimedPose>& gt, double max_gap) {
   std::vector<ErrorSample> out;

@@ -5,9 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
+#include <memory>
 
 #include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/localization/registry.hpp"
+#include "uwbloc/nlos/model.hpp"
 
 namespace uwbloc::eval {
 
@@ -17,6 +20,13 @@ loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed) {
   ctx.seed = seed;
   ctx.map = dataset.map;
   ctx.range_sigma = dataset.manifest.uwb_sigma;
+  // NLOS models named by the methods' nlos_model: read from their files once per context.
+  auto cache = std::make_shared<std::map<std::string, std::shared_ptr<const nlos::Model>>>();
+  ctx.nlos_models = [cache](const std::string& path) {
+    auto& model = (*cache)[path];
+    if (!model) model = std::make_shared<const nlos::Model>(nlos::Model::load(path));
+    return model;
+  };
   if (!dataset.ground_truth.empty()) {
     ctx.initial_pose = dataset.ground_truth.front().pose;
     ctx.initial_time = dataset.ground_truth.front().t;

@@ -9,24 +9,36 @@
 
 namespace uwbloc::loc {
 
-RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors)
-    : params_(params),
-      anchors_(std::move(anchors)),
-      increments_(uwb::IncrementQueueParams{params.iq_length, params.iq_zeta, params.iq_max_speed,
-                                            params.iq_floor, 10}) {
-  if (params.nlos_model.empty()) return;
-  std::string path = params.nlos_model;
-  if (path.rfind("model:", 0) == 0) path = path.substr(6);
+std::shared_ptr<const nlos::Model> resolveNlosModel(const RangeFrontEndParams& params,
+                                                    const EstimatorContext& context) {
+  if (params.nlos_model.empty()) return nullptr;
+  std::string name = params.nlos_model;
+  if (name.rfind("model:", 0) == 0) name = name.substr(6);
+  if (!context.nlos_models)
+    throw ParamError("nlos_model: " + name +
+                     ": this caller gives the methods no model loader (EstimatorContext::"
+                     "nlos_models)");
+  std::shared_ptr<const nlos::Model> model;
   try {
-    nlos_ = std::make_shared<const nlos::Model>(nlos::Model::load(path));
+    model = context.nlos_models(name);
   } catch (const nlos::DataError& e) {
     throw ParamError(std::string("nlos_model: ") + e.what());
   }
-  if (nlos_->set == nlos::FeatureSet::kCir || nlos_->set == nlos::FeatureSet::kCirRaw)
-    throw ParamError("nlos_model: " + path + " uses the '" + nlos::toString(nlos_->set) +
+  if (!model) throw ParamError("nlos_model: " + name + ": no such model");
+  if (model->set == nlos::FeatureSet::kCir || model->set == nlos::FeatureSet::kCirRaw)
+    throw ParamError("nlos_model: " + name + " uses the '" + nlos::toString(model->set) +
                      "' features (CIR diagnostics), which a range does not carry: train it with "
                      "--features power or sagehusa");
+  return model;
 }
+
+RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
+                             std::shared_ptr<const nlos::Model> nlos)
+    : params_(params),
+      anchors_(std::move(anchors)),
+      increments_(uwb::IncrementQueueParams{params.iq_length, params.iq_zeta, params.iq_max_speed,
+                                            params.iq_floor, 10}),
+      nlos_(std::move(nlos)) {}
 
 bool RangeFrontEnd::judge(AcceptedRange& r) {
   auto& m = r.measurement;

@@ -16,48 +16,50 @@ double snrDb(double amplitude, double noise) {
 }  // namespace
 
 FeatureSet parseFeatureSet(const std::string& name) {
-  for (FeatureSet s : {FeatureSet::kCir, FeatureSet::kCirRaw, FeatureSet::kPower,
-                       FeatureSet::kSageHusa})
+  for (FeatureSet s :
+       {FeatureSet::kCir, FeatureSet::kCirRaw, FeatureSet::kPower, FeatureSet::kSageHusa})
     if (name == toString(s)) return s;
   throw DataError("unknown feature set '" + name + "' (choose cir, cir-raw, power, sagehusa)");
 }
 
 const char* toString(FeatureSet set) {
   switch (set) {
-    case FeatureSet::kCir: return "cir";
-    case FeatureSet::kCirRaw: return "cir-raw";
-    case FeatureSet::kPower: return "power";
-    case FeatureSet::kSageHusa: return "sagehusa";
+    case FeatureSet::kCir:
+      return "cir";
+    case FeatureSet::kCirRaw:
+      return "cir-raw";
+    case FeatureSet::kPower:
+      return "power";
+    case FeatureSet::kSageHusa:
+      return "sagehusa";
   }
   return "?";
 }
 
-std::vector<std::string> featureNames(FeatureSet set) {
+const std::vector<std::string>& featureNames(FeatureSet set) {
+  static const std::vector<std::string> cir = {
+      "rx_minus_fp_db",   "rx_power_dbm", "fp_power_dbm", "fp_ampl1_snr_db",     "fp_ampl2_snr_db",
+      "fp_ampl3_snr_db",  "pr",           "range_m",      "fp_ampl1_per_acc_db", "noise_per_acc_db",
+      "fp_index_fraction"};
+  static const std::vector<std::string> cir_raw = {
+      "fp_ampl1", "fp_ampl2",     "fp_ampl3",     "std_noise",      "cir_power", "rxpacc",
+      "fp_index", "rx_power_dbm", "fp_power_dbm", "rx_minus_fp_db", "pr",        "range_m"};
+  static const std::vector<std::string> power = {"rx_minus_fp_db", "fp_power_dbm", "range_m"};
+  static const std::vector<std::string> sagehusa = {"rx_minus_fp_db", "predicted_minus_range_m"};
   switch (set) {
     case FeatureSet::kCir:
-      return {"rx_minus_fp_db", "rx_power_dbm", "fp_power_dbm", "fp_ampl1_snr_db",
-              "fp_ampl2_snr_db", "fp_ampl3_snr_db", "pr",      "range_m",
-              "fp_ampl1_per_acc_db", "noise_per_acc_db", "fp_index_fraction"};
+      return cir;
     case FeatureSet::kCirRaw:
-      return {"fp_ampl1", "fp_ampl2", "fp_ampl3", "std_noise", "cir_power", "rxpacc",
-              "fp_index", "rx_power_dbm", "fp_power_dbm", "rx_minus_fp_db", "pr", "range_m"};
+      return cir_raw;
     case FeatureSet::kPower:
-      return {"rx_minus_fp_db", "fp_power_dbm", "range_m"};
+      return power;
     case FeatureSet::kSageHusa:
-      return {"rx_minus_fp_db", "predicted_minus_range_m"};
+      return sagehusa;
   }
-  return {};
+  return power;
 }
 
-int featureCount(FeatureSet set) {
-  switch (set) {
-    case FeatureSet::kCir: return 11;
-    case FeatureSet::kCirRaw: return 12;
-    case FeatureSet::kPower: return 3;
-    case FeatureSet::kSageHusa: return 2;
-  }
-  return 0;
-}
+int featureCount(FeatureSet set) { return static_cast<int>(featureNames(set).size()); }
 
 FeatureVector features(FeatureSet set, const Sample& s) {
   FeatureVector x;
@@ -67,14 +69,22 @@ FeatureVector features(FeatureSet set, const Sample& s) {
     case FeatureSet::kCir:
       // Amplitudes over the noise std: both scale with the preamble accumulation count, so the
       // ratio carries across devices configured with other preamble lengths.
-      x = {pd, s.rx_power_dbm, s.fp_power_dbm, snrDb(s.fp_ampl1, s.std_noise),
-           snrDb(s.fp_ampl2, s.std_noise), snrDb(s.fp_ampl3, s.std_noise), s.pr, s.range,
-           snrDb(s.fp_ampl1, s.rxpacc), snrDb(s.std_noise, s.rxpacc),
-           s.fp_index - std::floor(s.fp_index), NAN};
+      x = {pd,
+           s.rx_power_dbm,
+           s.fp_power_dbm,
+           snrDb(s.fp_ampl1, s.std_noise),
+           snrDb(s.fp_ampl2, s.std_noise),
+           snrDb(s.fp_ampl3, s.std_noise),
+           s.pr,
+           s.range,
+           snrDb(s.fp_ampl1, s.rxpacc),
+           snrDb(s.std_noise, s.rxpacc),
+           s.fp_index - std::floor(s.fp_index),
+           NAN};
       break;
     case FeatureSet::kCirRaw:
-      x = {s.fp_ampl1, s.fp_ampl2, s.fp_ampl3, s.std_noise, s.cir_power, s.rxpacc,
-           s.fp_index, s.rx_power_dbm, s.fp_power_dbm, pd, s.pr, s.range};
+      x = {s.fp_ampl1, s.fp_ampl2,     s.fp_ampl3,     s.std_noise, s.cir_power, s.rxpacc,
+           s.fp_index, s.rx_power_dbm, s.fp_power_dbm, pd,          s.pr,        s.range};
       break;
     case FeatureSet::kPower:
       x[0] = pd, x[1] = s.fp_power_dbm, x[2] = s.range;
@@ -144,8 +154,12 @@ nlohmann::json toJson(const Additive& a) {
   }
   auto trees = nlohmann::json::array();
   for (const auto& t : a.trees)
-    trees.push_back({{"feature", t.feature}, {"threshold", t.threshold}, {"yes", t.yes},
-                     {"no", t.no}, {"missing", t.missing}, {"value", t.value}});
+    trees.push_back({{"feature", t.feature},
+                     {"threshold", t.threshold},
+                     {"yes", t.yes},
+                     {"no", t.no},
+                     {"missing", t.missing},
+                     {"value", t.value}});
   j["trees"] = trees;
   return j;
 }

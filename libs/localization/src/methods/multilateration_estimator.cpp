@@ -7,7 +7,7 @@ namespace uwbloc::loc {
 MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
                                                    const MultilaterationParams& params,
                                                    const EstimatorContext& context)
-    : EpochUwbEstimator(params.front, context.anchors, params.epoch_window),
+    : EpochUwbEstimator(params.front, context, params.epoch_window),
       solver_(solver),
       params_(params) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());

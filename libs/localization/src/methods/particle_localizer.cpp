@@ -32,7 +32,7 @@ std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core
   }
   if (uwb)
     measurements.push_back(
-        std::make_unique<UwbRangeMeasurement>(*uwb, context.anchors, context.map));
+        std::make_unique<UwbRangeMeasurement>(*uwb, context));
   std::unique_ptr<PosteriorStep> posterior;
   if (swarm)
     posterior = std::make_unique<SwarmStep>(*swarm);

@@ -5,7 +5,7 @@
 namespace uwbloc::loc {
 
 UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context.anchors),
+    : UwbEstimator(params.front, context),
       params_(params),
       init_epochs_(params.epoch_window) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());

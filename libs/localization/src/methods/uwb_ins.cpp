@@ -35,7 +35,7 @@ constexpr double kOutputPeriod = 0.1;  ///< [s] between estimates from the IMU a
 }  // namespace
 
 UwbIns::UwbIns(const UwbInsParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context.anchors),
+    : UwbEstimator(params.front, context),
       params_(params),
       start_pose_(context.initial_pose),
       epochs_(params.epoch_window),

@@ -85,11 +85,10 @@ void LidarFieldMeasurement::addArtifacts(
 // ---------------------------------------------------------------- UWB ranges
 
 UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
-                                         const std::vector<uwb::Anchor>& anchors,
-                                         std::shared_ptr<const OccupancyMap> map)
+                                         const EstimatorContext& context)
     : params_(params),
-      front_(params.front, anchors),
-      map_(std::move(map)),
+      front_(params.front, context.anchors, resolveNlosModel(params.front, context)),
+      map_(context.map),
       nlos_reason_(std::string("nlos_") + enumName(params.nlos)),
       pose_gate_(params.nlos_k * params.nlos_k),
       noise_(params.front.sigmaValue()) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,11 @@ struct TimedPose {
 /// the rawlog's step k. Rows must be in time order. Throws InputError naming file and line.
 std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthFormat format,
                                        const std::vector<double>& step_times = {});
+
+/// Ground truth at time t, linearly interpolated (heading along the shorter arc). Nothing when
+/// t is outside the ground truth or the bracketing samples are more than `max_gap` apart.
+std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<TimedPose>& gt, double t,
+                                                      double max_gap);
 
 /// Writes "t x y z qx qy qz qw" rows (TUM), z = 0.
 std::string formatTum(const std::vector<TimedPose>& poses);

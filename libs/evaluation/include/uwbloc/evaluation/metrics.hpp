@@ -11,10 +11,7 @@
 
 namespace uwbloc::eval {
 
-/// Ground truth at time t, linearly interpolated (heading along the shorter arc). Nothing when
-/// t is outside the ground truth or the bracketing samples are more than `max_gap` apart.
-std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<data::TimedPose>& gt,
-                                                      double t, double max_gap);
+using data::interpolateGroundTruth;
 
 struct ErrorSample {
   double t = 0.0;

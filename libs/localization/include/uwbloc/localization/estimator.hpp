@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -13,6 +14,10 @@
 #include "uwbloc/localization/params.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/types.hpp"
+
+namespace uwbloc::nlos {
+class Model;
+}
 
 namespace uwbloc::loc {
 
@@ -71,6 +76,9 @@ struct EstimatorContext {
   /// The dataset's measured LOS range noise, when its manifest states one: the default of
   /// every method's `sigma` parameter (a spec or config value still wins).
   std::optional<double> range_sigma;
+  /// Resolves a method's `nlos_model=` name to a model. The application loads the file (an
+  /// estimator never opens one); empty: a method given nlos_model refuses it.
+  std::function<std::shared_ptr<const nlos::Model>(const std::string&)> nlos_models;
 };
 
 class Estimator {

@@ -68,6 +68,11 @@ struct RangeFrontEndParams {
   }
 };
 
+/// The model that `params.nlos_model` names, from the context's resolver; none when the name is
+/// empty. Throws ParamError when the context has no resolver or the model cannot judge a range.
+std::shared_ptr<const nlos::Model> resolveNlosModel(const RangeFrontEndParams& params,
+                                                    const EstimatorContext& context);
+
 /// A range that passed the front end.
 struct AcceptedRange {
   uwb::Range measurement;
@@ -82,7 +87,9 @@ struct AcceptedRange {
 
 class RangeFrontEnd {
  public:
-  RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors);
+  /// `nlos`: the model named by params.nlos_model (resolveNlosModel), or none.
+  RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
+                std::shared_ptr<const nlos::Model> nlos = nullptr);
   /// Returns the accepted range, or the reason it was rejected.
   std::optional<AcceptedRange> accept(const uwb::Range& range, uwb::RejectReason* reason);
   const std::vector<uwb::Anchor>& anchors() const { return anchors_; }
@@ -102,8 +109,8 @@ class RangeFrontEnd {
 /// counting each rejection against its anchor.
 class UwbEstimator : public Estimator {
  protected:
-  UwbEstimator(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors)
-      : front_(params, std::move(anchors)) {}
+  UwbEstimator(const RangeFrontEndParams& params, const EstimatorContext& context)
+      : front_(params, context.anchors, resolveNlosModel(params, context)) {}
   /// The accepted range carried by `event`; nothing for other events and rejected ranges.
   std::optional<AcceptedRange> acceptRange(const Event& event);
 
@@ -142,9 +149,9 @@ class EpochBuffer {
 /// epoch (and the last, open one at the end of the stream) goes to onEpoch().
 class EpochUwbEstimator : public UwbEstimator {
  protected:
-  EpochUwbEstimator(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
+  EpochUwbEstimator(const RangeFrontEndParams& params, const EstimatorContext& context,
                     AutoDouble window)
-      : UwbEstimator(params, std::move(anchors)), epochs_(window) {}
+      : UwbEstimator(params, context), epochs_(window) {}
   std::optional<PoseEstimate> doProcess(const Event& event) final;
   std::optional<PoseEstimate> doFinish() final;
   virtual std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) = 0;

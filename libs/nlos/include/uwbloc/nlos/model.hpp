@@ -26,8 +26,8 @@ enum class FeatureSet {
 };
 FeatureSet parseFeatureSet(const std::string& name);  ///< throws DataError naming the choices
 const char* toString(FeatureSet set);
-std::vector<std::string> featureNames(FeatureSet set);
-/// How many features the set has (featureNames(set).size(), without allocating).
+const std::vector<std::string>& featureNames(FeatureSet set);
+/// How many features the set has.
 int featureCount(FeatureSet set);
 
 constexpr int kMaxFeatures = 12;

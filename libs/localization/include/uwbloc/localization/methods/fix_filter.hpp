@@ -36,7 +36,7 @@ struct FixFilterParams {
 class FixFilter : public EpochUwbEstimator {
  protected:
   FixFilter(const FixFilterParams& params, const EstimatorContext& context)
-      : EpochUwbEstimator(params.front, context.anchors, params.epoch_window), fix_(params) {}
+      : EpochUwbEstimator(params.front, context, params.epoch_window), fix_(params) {}
   std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) final;
   void reset() override { initialised_ = false; }
 

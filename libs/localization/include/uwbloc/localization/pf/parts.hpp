@@ -249,9 +249,9 @@ class LidarFieldMeasurement final : public EpochMeasurement {
 /// after the epoch's other updates, and the Gaussian range likelihood (eq. 26, in logs).
 class UwbRangeMeasurement final : public EpochMeasurement {
  public:
-  /// `map` is needed by the ray-cast test only, and used to record its decision when present.
-  UwbRangeMeasurement(const UwbPartParams& params, const std::vector<uwb::Anchor>& anchors,
-                      std::shared_ptr<const OccupancyMap> map);
+  /// The context's map is needed by the ray-cast test only, and used to record its decision
+  /// when present.
+  UwbRangeMeasurement(const UwbPartParams& params, const EstimatorContext& context);
   bool take(const Event& event, EstimatorStatistics& stats) override;
   void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
   double addLogLikelihood(double l, double x, double y, double theta) const override;
