@@ -292,6 +292,16 @@ TEST(Cli, NlosTrainEvalAndAFilterThatUsesTheModel) {
   std::ifstream json(dir / "run" / "metrics.json");
   const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("\"nlos_model\": 100"), std::string::npos) << text.substr(0, 2000);
+  // Ranges without powers cannot be judged: the table says so.
+  const auto bare = writeText(dir / "bare.ini",
+                              "[dataset]\nrawlog = r.rawlog\nground_truth = gt.txt\n"
+                              "ground_truth_format = time_xyphi\n[anchors]\nanchors_csv = "
+                              "anchors.csv\n");
+  r = runCli("run -d " + bare + " -m uwb-ekf:nlos_model=" + model + " -o " +
+             (dir / "bare").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("WARNING: uwb-ekf:nlos_model="), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("judged none of 300 ranges"), std::string::npos) << r.output;
   // A malformed row names its file and line; a missing model names the parameter.
   const auto bad = writeText(dir / "bad.csv", "t,anchor_id,range,nlos\n1,1,4,0\n2,1,x,1\n");
   expectFailureMentioning(runCli("nlos train --data " + bad + " --out " + model),

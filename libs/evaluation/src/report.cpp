@@ -285,6 +285,11 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
     else if (flag == "low_coverage")
       out << "FLAGGED: " << m.spec << " covers only " << std::lround(100 * m.metrics.coverage)
           << " % of the ground truth (under 50 %)\n";
+    // An NLOS model that could not judge a range did nothing to it: say so, not only count it.
+    if (const auto it = m.events.find("nlos_no_powers"); it != m.events.end())
+      out << "WARNING: " << m.spec << ": its NLOS model judged none of " << it->second
+          << " ranges, which carry no received and first-path power (a range_features side "
+             "file gives them)\n";
   }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
          "samples with an estimate within 1 s; worst = the worst seed's rmse_2d; xRT = "
