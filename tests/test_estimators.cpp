@@ -48,7 +48,7 @@ const std::map<std::string, double> kRoomBound = {
     {"fused-pf", 0.03},      {"pf-sir", 0.03},
     {"pf-ibas", 0.04},       {"pf-ibas-stratified", 0.04},
     {"uwb-pf", 0.15},        {"graph-uwb-odom", 0.23},
-    {"pf-ibas+graph", 0.045}};
+    {"pf-ibas+graph", 0.045}, {"uwb-multitag", 0.33}};
 
 std::string testName(const ::testing::TestParamInfo<std::string>& info) {
   std::string n = info.param;

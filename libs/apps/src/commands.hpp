@@ -7,6 +7,7 @@
 
 #include "uwbloc/apps/command.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
+#include "uwbloc/dataset/lias_import.hpp"
 #include "uwbloc/dataset/simulator.hpp"
 #include "uwbloc/localization/optim/optimizers.hpp"
 #include "uwbloc/nlos/train.hpp"
@@ -54,6 +55,8 @@ class ImportCommand : public Command {
  private:
   std::string format_, source_, out_, data_dir_;
   data::HanyangImportParams hanyang_;
+  data::LiasImportParams lias_;
+  std::optional<double> tag_height_;
 };
 
 /// `simulate --scenario S --out DIR`.
@@ -141,6 +144,19 @@ class NlosCommand : public Command {
   int folds_ = 5, repeats_ = 5;
   double target_weight_ = 0.0;
   std::vector<int> shots_{0, 10, 50, 200};
+};
+
+/// `calibrate MANIFEST... --out DIR`: range bias, scale and noise, and unknown anchors, from
+/// recordings with a reference.
+class CalibrateCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::vector<std::string> manifests_;
+  std::string out_, data_dir_, per_ = "link", free_anchors_;
+  bool scale_ = false;
 };
 
 }  // namespace uwbloc::apps

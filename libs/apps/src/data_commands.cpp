@@ -11,6 +11,8 @@
 #include "uwbloc/dataset/scenario.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/evaluation/benchmark.hpp"
+#include "uwbloc/evaluation/calibration.hpp"
+#include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/evaluation/sensitivity.hpp"
 
 namespace uwbloc::apps {
@@ -20,25 +22,38 @@ void ImportCommand::declare(CLI::App& parser) {
       "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
   auto* cmd = subcommand_;
   cmd->add_option("format", format_,
-                  "source format: hanyang (one dynamic run folder), carmen (a .log or .log.gz) or "
-                  "plaza (the Plaza folder)")
+                  "source format: hanyang (one dynamic run folder), carmen (a .log or .log.gz), "
+                  "plaza (the Plaza folder) or lias (one UWB_*.csv file of the LIAS-CUHKSZ "
+                  "planar set, dynamic or static)")
       ->required()
-      ->check(CLI::IsMember({"hanyang", "carmen", "plaza"}));
+      ->check(CLI::IsMember({"hanyang", "carmen", "plaza", "lias"}));
   cmd->add_option("source", source_,
                   "source folder (as given, or relative to the data directory), e.g. "
                   "hanyang_outdoor_uwb/LOS_TrajA_Case1")
       ->required();
   cmd->add_option("--out,-o", out_, "output folder")->required();
   cmd->add_option("--data-dir", data_dir_, "folder of public datasets");
-  cmd->add_option("--tag-height", hanyang_.tag_height, "hanyang: tag height [m]")
-      ->capture_default_str();
+  cmd->add_option("--tag-height", tag_height_,
+                  "tag height [m] (hanyang: default 1.0; lias: default the motion capture's "
+                  "median z)");
+  cmd->add_option("--bias", lias_.bias_csv,
+                  "lias: a per-link bias CSV (from 'uwbloc calibrate') to name in the manifest");
+  cmd->add_option("--readme", lias_.readme,
+                  "lias: the README with the anchor and tag coordinates (default: "
+                  "Planar_Dataset/<Dynamic|Static>/README.md above the file)");
 }
 
 int ImportCommand::run() {
   const std::string src = data::resolveInputPath(source_, data::resolveDataDir(data_dir_));
   data::ImportSummary s;
+  if (tag_height_) {
+    hanyang_.tag_height = *tag_height_;
+    lias_.tag_height = *tag_height_;
+  }
   if (format_ == "hanyang")
     s = data::importHanyang(src, out_, hanyang_);
+  else if (format_ == "lias")
+    s = data::importLias(src, out_, lias_);
   else if (format_ == "plaza")
     s = data::importPlaza(src, out_);
   else
@@ -180,6 +195,64 @@ int SensitivityCommand::run() {
                         eval::formatSensitivityJson(cells));
   std::cout << md << "Tables: " << out_ << "/sensitivity.md, " << out_ << "/sensitivity.json\n";
   return cells.empty() ? kNoResult : kSuccess;
+}
+
+}  // namespace uwbloc::apps
+
+namespace uwbloc::apps {
+
+void CalibrateCommand::declare(CLI::App& parser) {
+  subcommand_ = parser.add_subcommand(
+      "calibrate",
+      "From recordings with a reference (static runs at known poses, or a run with motion "
+      "capture): each anchor-tag link's (or anchor's) range bias, optionally scale, the range "
+      "noise, and the positions of anchors marked unknown. Writes anchors.csv and bias.csv, which "
+      "a manifest names with [anchors] anchors_csv and bias_csv");
+  auto* cmd = subcommand_;
+  cmd->add_option("manifests", manifests_, "dataset manifests (dataset.ini) with a reference")
+      ->required();
+  cmd->add_option("--out,-o", out_, "output folder")->required();
+  cmd->add_option("--per", per_, "one bias per link (anchor and tag) or per anchor")
+      ->check(CLI::IsMember({"link", "anchor"}))
+      ->capture_default_str();
+  cmd->add_flag("--scale", scale_, "also fit a range scale per group");
+  cmd->add_option("--free-anchors", free_anchors_,
+                  "comma-separated anchor ids whose x, y are unknown, or 'all'");
+  cmd->add_option("--data-dir", data_dir_, "folder of public datasets");
+}
+
+int CalibrateCommand::run() {
+  const std::string data_dir = data::resolveDataDir(data_dir_);
+  std::vector<data::Dataset> datasets;
+  for (const auto& m : manifests_) {
+    datasets.push_back(data::loadDataset(data::resolveInputPath(m, data_dir), data_dir, false));
+    if (!datasets.back().manifest.biases.empty())
+      std::cerr << "note: " << m << " names a bias file; calibration reads its raw ranges\n";
+  }
+  std::vector<const data::Dataset*> in;
+  for (const auto& d : datasets) in.push_back(&d);
+  eval::CalibrationOptions o;
+  o.per_link = per_ == "link";
+  o.scale = scale_;
+  if (free_anchors_ == "all") {
+    for (const auto& a : datasets.front().anchors) o.free_anchors.push_back(a.id);
+  } else {
+    for (const auto& id : splitList(free_anchors_)) {
+      try {
+        o.free_anchors.push_back(std::stoi(id));
+      } catch (const std::exception&) {
+        throw data::InputError("--free-anchors: '" + id + "' is not an anchor id");
+      }
+    }
+  }
+  const auto result = eval::calibrateRanges(in, o);
+  data::ensureDirectory(out_);
+  const std::filesystem::path out(out_);
+  data::writeFileAtomic((out / "anchors.csv").string(), data::formatAnchorsCsv(result.anchors));
+  data::writeFileAtomic((out / "bias.csv").string(), data::formatBiasCsv(result.biases));
+  std::cout << eval::formatCalibration(result) << "Written: " << out_ << "/anchors.csv, " << out_
+            << "/bias.csv\n";
+  return kSuccess;
 }
 
 }  // namespace uwbloc::apps

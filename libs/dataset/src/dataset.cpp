@@ -57,7 +57,8 @@ bool Dataset::provides(const std::string& need) const {
   return false;
 }
 
-Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir) {
+Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir,
+                    bool apply_bias) {
   Dataset ds;
   ds.manifest = loadManifest(manifest_path, data_dir);
   ds.name = ds.manifest.name;
@@ -68,11 +69,33 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   ds.step_times = rec.step_times;
   if (ds.events.empty()) throwInputError(ds.manifest.rawlog, 0, "rawlog holds no usable events");
 
+  long corrected = 0, robot_tags = 0;
   for (auto& e : ds.events) {
     auto* r = std::get_if<uwb::Range>(&e);
     if (!r) continue;
+    if (const auto tag = ds.manifest.tags.find(r->tag_id); tag != ds.manifest.tags.end()) {
+      r->on_robot = true;
+      r->tag_on_robot = tag->second;
+      ++robot_tags;
+    }
     if (ds.manifest.tag_height) r->tag_on_robot.z() = *ds.manifest.tag_height;
     if (ds.manifest.lever_arm) r->tag_on_robot.head<2>() = *ds.manifest.lever_arm;
+    if (const auto* b = apply_bias ? findBias(ds.manifest.biases, r->anchor_id, r->tag_id)
+                                   : nullptr) {
+      r->range = (r->range - b->bias) / (1.0 + b->scale);
+      ++corrected;
+    }
+  }
+  if (!ds.manifest.tags.empty()) {
+    ds.counts["ranges_from_listed_tags"] = robot_tags;
+    if (robot_tags == 0)
+      ds.warnings.push_back(ds.manifest.path +
+                            ": [tag] lists tags, but no range comes from any of them");
+  }
+  if (!ds.manifest.biases.empty() && apply_bias) {
+    ds.counts["ranges_bias_corrected"] = corrected;
+    if (corrected == 0)
+      ds.warnings.push_back(ds.manifest.bias_csv + ": no range matches any row (anchor/tag ids)");
   }
   if (!ds.manifest.range_features.empty())
     ds.counts["ranges_with_features"] = attachRangeFeatures(ds.manifest.range_features, ds.events);
@@ -101,15 +124,27 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
 }
 
 std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events) {
+  // Readings that share a stamp by design (the ranges of one beacon observation, several tags
+  // ranging at once) differ in what they measure; a collapsed clock repeats the same reading's
+  // key (kind, stamp, tag, anchor) many times over.
   if (events.size() < 50) return std::nullopt;
+  std::vector<std::tuple<double, size_t, int, int>> keys;
+  keys.reserve(events.size());
+  for (const auto& e : events) {
+    const auto* r = std::get_if<uwb::Range>(&e);
+    keys.emplace_back(loc::eventTime(e), e.index(), r ? r->tag_id : 0, r ? r->anchor_id : 0);
+  }
+  std::sort(keys.begin(), keys.end());
+  const auto distinct_keys =
+      static_cast<size_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
+  if (10 * distinct_keys >= events.size()) return std::nullopt;
   std::vector<double> t;
-  t.reserve(events.size());
-  for (const auto& e : events) t.push_back(loc::eventTime(e));
-  std::sort(t.begin(), t.end());
+  t.reserve(distinct_keys);
+  for (size_t k = 0; k < distinct_keys; ++k) t.push_back(std::get<0>(keys[k]));
   const auto distinct = static_cast<size_t>(std::unique(t.begin(), t.end()) - t.begin());
-  if (10 * distinct >= events.size()) return std::nullopt;
+  const size_t messages = events.size();
   return "timestamps have collapsed: " + std::to_string(distinct) + " distinct stamps for " +
-         std::to_string(events.size()) +
+         std::to_string(messages) +
          " messages (written with too few digits?); results from it cannot be trusted";
 }
 

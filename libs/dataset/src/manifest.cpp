@@ -58,10 +58,12 @@ std::string formatManifest(const ManifestDraft& d) {
     ini << "ground_truth = " << d.ground_truth
         << "\nground_truth_format = " << toString(d.ground_truth_format) << "\n";
   if (d.gt_max_gap) ini << "gt_max_gap = " << number("%.3g", *d.gt_max_gap) << "\n";
+  if (!d.ground_truth.empty() && !d.reference_heading) ini << "reference_heading = false\n";
   if (!d.map.empty()) ini << "map = " << d.map << "\n";
   if (!d.range_features.empty()) ini << "range_features = " << d.range_features << "\n";
   ini << "\n[anchors]\n";
   if (!d.anchors_csv.empty()) ini << "anchors_csv = " << d.anchors_csv << "\n";
+  if (!d.bias_csv.empty()) ini << "bias_csv = " << d.bias_csv << "\n";
   for (size_t i = 0; d.anchors_csv.empty() && i < d.anchors.size(); ++i) {
     const auto& a = d.anchors[i];
     const std::string key = "beacon_" + number("%03.0f", static_cast<double>(i + 1)) + "_";
@@ -70,7 +72,10 @@ std::string formatManifest(const ManifestDraft& d) {
         << key << "Y = " << number("%.6g", a.position.y()) << "\n"
         << key << "Z = " << number("%.6g", a.position.z()) << "\n";
   }
-  if (d.tag_height || d.lever_arm) ini << "\n[tag]\n";
+  if (d.tag_height || d.lever_arm || !d.tags.empty()) ini << "\n[tag]\n";
+  for (const auto& [id, p] : d.tags)
+    ini << "tag_" << id << " = " << number("%.4f", p.x()) << " " << number("%.4f", p.y()) << " "
+        << number("%.4f", p.z()) << "\n";
   if (d.tag_height) ini << "height = " << number("%.4f", *d.tag_height) << "\n";
   if (d.lever_arm)
     ini << "lever_arm_x = " << number("%.4f", d.lever_arm->x())
@@ -118,6 +123,55 @@ std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors) {
   for (const auto& a : anchors)
     csv << a.id << ',' << a.position.x() << ',' << a.position.y() << ',' << a.position.z() << '\n';
   return csv.str();
+}
+
+std::vector<RangeBias> loadBiasCsv(const std::string& path) {
+  std::vector<RangeBias> biases;
+  forEachRow(path, [&](int line, const std::vector<std::string>& f) {
+    if (biases.empty() && !f.empty() && f[0] == "anchor_id") return;  // header
+    if (f.size() < 3 || f.size() > 6)
+      throwInputError(path, line,
+                      "expected 'anchor_id,tag_id,bias[,scale[,sigma[,samples]]]', got " +
+                          std::to_string(f.size()) + " fields");
+    RangeBias b;
+    b.anchor_id = parseId(f[0], path, line, "anchor_id");
+    if (f[1] != "*") b.tag_id = parseId(f[1], path, line, "tag_id");
+    b.bias = parseNumber(f[2], path, line, "bias");
+    if (f.size() > 3) b.scale = parseNumber(f[3], path, line, "scale");
+    if (f.size() > 4) b.sigma = parseNumber(f[4], path, line, "sigma");
+    if (f.size() > 5) b.samples = std::lround(parseNumber(f[5], path, line, "samples"));
+    if (!(std::abs(b.bias) < 100.0)) throwInputError(path, line, "bias must be within +-100 m");
+    if (!(std::abs(b.scale) < 0.5)) throwInputError(path, line, "scale must be within +-0.5");
+    if (!(b.sigma >= 0.0 && b.sigma < 100.0))
+      throwInputError(path, line, "sigma must be within 0..100 m");
+    for (const auto& o : biases)
+      if (o.anchor_id == b.anchor_id && o.tag_id == b.tag_id)
+        throwInputError(path, line, "duplicate row for anchor " + f[0] + ", tag " + f[1]);
+    biases.push_back(b);
+  });
+  return biases;
+}
+
+std::string formatBiasCsv(const std::vector<RangeBias>& biases) {
+  std::string csv = "anchor_id,tag_id,bias,scale,sigma,samples\n";
+  char buf[160];
+  for (const auto& b : biases) {
+    const std::string tag = b.tag_id ? std::to_string(*b.tag_id) : "*";
+    std::snprintf(buf, sizeof buf, "%d,%s,%.5f,%.6f,%.5f,%ld\n", b.anchor_id, tag.c_str(), b.bias,
+                  b.scale, b.sigma, b.samples);
+    csv += buf;
+  }
+  return csv;
+}
+
+const RangeBias* findBias(const std::vector<RangeBias>& biases, int anchor_id, int tag_id) {
+  const RangeBias* any = nullptr;
+  for (const auto& b : biases) {
+    if (b.anchor_id != anchor_id) continue;
+    if (b.tag_id == tag_id) return &b;
+    if (!b.tag_id) any = &b;
+  }
+  return any;
 }
 
 namespace {
@@ -223,6 +277,12 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   m.ground_truth = pathKey("ground_truth");
   m.map = pathKey("map");
   m.gt_max_gap = ini.getDouble("dataset", "gt_max_gap", m.gt_max_gap);
+  if (const auto h = ini.get("dataset", "reference_heading")) {
+    if (*h != "true" && *h != "false")
+      throwInputError(path, ini.lineOf("dataset", "reference_heading"),
+                      "reference_heading must be true or false, got '" + *h + "'");
+    m.reference_heading = *h == "true";
+  }
   m.range_features = pathKey("range_features");
   try {
     m.ground_truth_format = parseGroundTruthFormat(
@@ -235,10 +295,28 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
                     "ground_truth given without ground_truth_format");
 
   m.anchors = readAnchors(ini, path, dir, data_dir);
+  if (const auto bias = ini.get("anchors", "bias_csv")) {
+    m.bias_csv = resolvePath(*bias, dir, data_dir, path, ini.lineOf("anchors", "bias_csv"));
+    m.biases = loadBiasCsv(m.bias_csv);
+  }
   if (ini.get("tag", "height")) m.tag_height = ini.getDouble("tag", "height");
   if (ini.get("tag", "lever_arm_x") || ini.get("tag", "lever_arm_y"))
     m.lever_arm = Eigen::Vector2d(ini.getDouble("tag", "lever_arm_x", 0.0),
                                   ini.getDouble("tag", "lever_arm_y", 0.0));
+  for (const auto& key : ini.keys("tag")) {
+    if (key.rfind("tag_", 0) != 0) continue;
+    const int line = ini.lineOf("tag", key);
+    const int id = parseId(key.substr(4), path, line, "[tag] " + key);
+    std::istringstream in(*ini.get("tag", key));
+    Eigen::Vector3d p;
+    std::string extra;
+    if (!(in >> p.x() >> p.y() >> p.z()) || (in >> extra) || !p.allFinite())
+      throwInputError(path, line, "[tag] " + key + ": expected 'x y z' (position on the robot, m)");
+    m.tags[id] = p;
+  }
+  if (!m.tags.empty() && (m.tag_height || m.lever_arm))
+    throwInputError(path, ini.lineOf("tag", "height"),
+                    "[tag]: give either tag_<id> keys or height/lever_arm_x/lever_arm_y, not both");
   if (ini.get("uwb", "sigma")) {
     m.uwb_sigma = ini.getDouble("uwb", "sigma");
     if (!(*m.uwb_sigma > 0))

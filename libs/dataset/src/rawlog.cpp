@@ -71,6 +71,7 @@ class Converter {
         r.t = t;
         r.anchor_id = static_cast<int>(m.beaconID);
         r.tag_id = tagIdFromLabel(b->sensorLabel);
+        r.on_robot = r.tag_id == 0;
         r.range = m.sensedDistance;
         r.tag_on_robot << m.sensorLocationOnRobot.x(), m.sensorLocationOnRobot.y(),
             m.sensorLocationOnRobot.z();

@@ -173,6 +173,7 @@ Recording decode(const std::string& bytes, size_t at) {
         range.t = r.get<double>();
         range.anchor_id = r.get<int>();
         range.tag_id = r.get<int>();
+        range.on_robot = range.tag_id == 0;
         range.range = r.get<double>();
         range.tag_on_robot = r.getEigen<3>();
         range.rx_power_dbm = getOptional(r);

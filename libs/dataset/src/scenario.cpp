@@ -251,6 +251,14 @@ void readUwb(const IniFile& ini, const std::string& path, Scenario& s) {
     const auto t = numbers(ini, "uwb", "tag", 3);
     u.tag = {t[0], t[1], t[2]};
   }
+  for (const auto& key : ini.keys("uwb"))
+    if (key.rfind("tag_", 0) == 0) {
+      const int id = parseId(key.substr(4), path, ini.lineOf("uwb", key), key);
+      if (id == 0)
+        throwInputError(path, ini.lineOf("uwb", key), "tag 0 is the robot's 'tag' key");
+      const auto t = numbers(ini, "uwb", key, 3);
+      u.extra_tags[id] = {t[0], t[1], t[2]};
+    }
   readDouble(ini, "uwb", "max_range", u.max_range);
   if (!(u.rate > 0) || !(u.sigma >= 0))
     throwInputError(path, ini.lineOf("uwb", "rate"), "[uwb] rate must be > 0 and sigma >= 0");
@@ -298,6 +306,9 @@ void readLidar(const IniFile& ini, const std::string& path, Scenario& s) {
 
 // The trajectories and anchors against the world; the duration of a lap when none is given.
 void validateScenario(const IniFile& ini, const std::string& path, Scenario& s) {
+  if (s.tag2.enabled && s.uwb.extra_tags.count(1))
+    throwInputError(path, ini.lineOf("uwb", "tag_1"),
+                    "tag id 1 is the [tag2] mobile node's: number the robot's tags from 2");
   const auto map = scenarioMap(s);
   if (s.lidar.enabled && !map)
     throwInputError(path, ini.lineOf("lidar", "preset"), "a LiDAR needs a [world] map or bounds");

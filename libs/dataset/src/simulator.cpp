@@ -66,6 +66,7 @@ class RangeModel {
     r.t = t;
     r.anchor_id = anchor.id;
     r.tag_id = tag_id;
+    r.on_robot = tag_id == 0;
     r.range = measured;
     r.tag_on_robot = tag_on_robot;
     if (spec_.features) {
@@ -115,6 +116,26 @@ std::string formatTimeXyPhi(const std::vector<TimedPose>& poses) {
 
 namespace {
 
+// Ranges from every tag on the robot (tag 0, then the extra tags) to one anchor at time t.
+void measureRobotTags(RangeModel& model, double t, const Eigen::Vector3d& pose,
+                      const uwb::Anchor& anchor, const UwbSimSpec& uwb,
+                      std::vector<loc::Event>& out, std::vector<RangeTruth>* truth) {
+  model.measure(t, 0, uwb::tagPosition(pose, uwb.tag), anchor, uwb.tag, out, truth);
+  for (const auto& [id, tag] : uwb.extra_tags)
+    model.measure(t, id, uwb::tagPosition(pose, tag), anchor, tag, out, truth);
+}
+
+// The manifest's tag keys: one tag as height and lever arm, several as tag_<id> keys.
+void describeTags(const UwbSimSpec& uwb, ManifestDraft& m) {
+  if (uwb.extra_tags.empty()) {
+    m.tag_height = uwb.tag.z();
+    m.lever_arm = uwb.tag.head<2>();
+    return;
+  }
+  m.tags = uwb.extra_tags;
+  m.tags[0] = uwb.tag;
+}
+
 // UWB: each anchor at its rate, staggered unless synchronous. Generated anchor by anchor and
 // sorted by the caller; the draws follow the anchor order, so they are reproducible.
 void simulateUwb(const Scenario& s, const TrajectorySampler& robot,
@@ -132,8 +153,7 @@ void simulateUwb(const Scenario& s, const TrajectorySampler& robot,
       const double t = k / rate + offset;
       if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
       const Eigen::Vector3d pose = robot.pose(t);
-      model.measure(t0 + t, 0, uwb::tagPosition(pose, s.uwb.tag), s.anchors[i], s.uwb.tag,
-                    sim.events, &sim.range_truth);
+      measureRobotTags(model, t0 + t, pose, s.anchors[i], s.uwb, sim.events, &sim.range_truth);
       if (tag2) {
         const Eigen::Vector3d p2 = tag2->pose(t);
         const Eigen::Vector3d tag2_world(p2.x(), p2.y(), s.tag2.height);
@@ -292,7 +312,7 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
       const double w = (t - a.t) / (b.t - a.t);
       Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
       pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
-      model.measure(t, 0, uwb::tagPosition(pose, uwb.tag), anchors[i], uwb.tag, out, truth);
+      measureRobotTags(model, t, pose, anchors[i], uwb, out, truth);
     }
   }
   loc::sortByTime(out);
@@ -357,8 +377,7 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
   m.gt_max_gap = req.max_gap;
   if (map) m.map = "map.gridmap.gz";
   m.anchors_csv = "anchors.csv";
-  m.tag_height = uwb.tag.z();
-  m.lever_arm = uwb.tag.head<2>();
+  describeTags(uwb, m);
   m.bounds_range_sigma = uwb.sigma;
   const std::string manifest = writeManifest(out_dir, m);
   return manifest;
@@ -405,8 +424,7 @@ std::string writeSimulation(const Scenario& s, uint64_t seed, const std::string&
   if (map) m.map = "map.gridmap.gz";
   if (s.uwb.features) m.range_features = "range_features.csv";
   m.anchors_csv = "anchors.csv";
-  m.tag_height = s.uwb.tag.z();
-  m.lever_arm = s.uwb.tag.head<2>();
+  describeTags(s.uwb, m);
   m.bounds_range_sigma = s.uwb.sigma;
   if (s.odometry.rate > 0)
     m.bounds_odometry = Eigen::Vector3d(s.odometry.sigma_xy_per_m, s.odometry.sigma_theta_per_rad,

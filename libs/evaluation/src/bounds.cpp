@@ -41,7 +41,7 @@ namespace {
 // Tag height and lever arm of the robot's own tag, from the first such range.
 Eigen::Vector3d tagOnRobot(const data::Dataset& ds) {
   for (const auto& e : ds.events)
-    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->tag_id == 0) return r->tag_on_robot;
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->on_robot) return r->tag_on_robot;
   return Eigen::Vector3d::Zero();
 }
 
@@ -111,7 +111,7 @@ BoundSeries posteriorCrlb(const data::Dataset& ds, const data::BoundsSpec& spec)
       continue;
     }
     const auto* r = std::get_if<uwb::Range>(&e);
-    if (!r || r->tag_id != 0) continue;
+    if (!r || !r->on_robot) continue;
     const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
     const auto truth = interpolateGroundTruth(ds.ground_truth, t, 2.0);
     if (!a || !truth) continue;

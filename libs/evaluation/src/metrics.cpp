@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "uwbloc/localization/events.hpp"
+#include "uwbloc/uwb/pose2.hpp"
 
 namespace uwbloc::eval {
 
@@ -19,6 +20,7 @@ std::vector<ErrorSample> associate(const std::vector<loc::PoseEstimate>& estimat
     s.ex = e.pose.x() - truth->x();
     s.ey = e.pose.y() - truth->y();
     s.e2d = std::hypot(s.ex, s.ey);
+    s.eyaw = e.heading_valid ? wrapAngle(e.pose.z() - truth->z()) : NAN;
     out.push_back(s);
   }
   return out;
@@ -35,7 +37,8 @@ double quantile(std::vector<double> values, double q) {
 
 Metrics computeMetrics(const std::vector<ErrorSample>& errors,
                        const std::vector<loc::PoseEstimate>& estimates,
-                       const std::vector<data::TimedPose>& gt, double coverage_tolerance) {
+                       const std::vector<data::TimedPose>& gt, double coverage_tolerance,
+                       bool reference_heading) {
   Metrics m;
   m.steps = static_cast<long>(estimates.size());
   m.associated = static_cast<long>(errors.size());
@@ -78,6 +81,21 @@ Metrics computeMetrics(const std::vector<ErrorSample>& errors,
   m.final_2d = errors.back().e2d;
   m.median_2d = quantile(e2d, 0.5);
   m.p95_2d = quantile(e2d, 0.95);
+  if (reference_heading) {
+    std::vector<double> yaw;
+    yaw.reserve(errors.size());
+    double syaw = 0.0;
+    for (const auto& e : errors) {
+      if (!std::isfinite(e.eyaw)) continue;
+      yaw.push_back(std::abs(e.eyaw) * 180.0 / M_PI);
+      syaw += yaw.back() * yaw.back();
+    }
+    if (!yaw.empty()) {
+      m.rmse_yaw_deg = std::sqrt(syaw / static_cast<double>(yaw.size()));
+      m.median_yaw_deg = quantile(yaw, 0.5);
+      m.p95_yaw_deg = quantile(yaw, 0.95);
+    }
+  }
   for (int i = 0; i <= 20; ++i) {
     const double q = i / 20.0;
     m.cdf.emplace_back(quantile(e2d, q), q);

@@ -101,6 +101,9 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["p95_2d"] = number(m.metrics.p95_2d);
     e["max_2d"] = number(m.metrics.max_2d);
     e["final_2d"] = number(m.metrics.final_2d);
+    e["rmse_yaw_deg"] = number(m.metrics.rmse_yaw_deg);
+    e["median_yaw_deg"] = number(m.metrics.median_yaw_deg);
+    e["p95_yaw_deg"] = number(m.metrics.p95_yaw_deg);
     e["ms_per_step"] = number(m.ms_per_step);
     e["realtime_factor"] = number(m.realtime_factor);
     e["efficiency_crlb"] = number(m.metrics.rmse_2d / bounds.static_rmse);
@@ -144,7 +147,7 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
                              const std::vector<MethodSummary>& methods) {
   std::ostringstream out;
   out << "dataset,method,runs,steps,coverage,rmse_x,rmse_y,rmse_2d,rmse_2d_std,mae_2d,"
-         "median_2d,p95_2d,max_2d,ms_per_step,realtime_factor,rejected_total,resets\n";
+         "median_2d,p95_2d,max_2d,rmse_yaw_deg,ms_per_step,realtime_factor,rejected_total,resets\n";
   // A metric that cannot be computed is an empty field, never "nan".
   auto v = [](double x) {
     std::ostringstream s;
@@ -156,7 +159,7 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
         << v(m.metrics.coverage) << "," << v(m.metrics.rmse_x) << "," << v(m.metrics.rmse_y) << ","
         << v(m.metrics.rmse_2d) << "," << v(m.rmse_2d_std) << "," << v(m.metrics.mae_2d) << ","
         << v(m.metrics.median_2d) << "," << v(m.metrics.p95_2d) << "," << v(m.metrics.max_2d) << ","
-        << v(m.ms_per_step) << "," << v(m.realtime_factor) << "," << totalRejected(m) << ","
+        << v(m.metrics.rmse_yaw_deg) << "," << v(m.ms_per_step) << "," << v(m.realtime_factor) << "," << totalRejected(m) << ","
         << m.resets << "\n";
   }
   return out.str();
@@ -182,7 +185,8 @@ void tableRows(std::ostringstream& out, const std::vector<MethodSummary>& method
         << num(m.metrics.rmse_2d, 7, 3) << " " << num(m.rmse_2d_std, 6, 3) << " "
         << num(m.worstRmse(), 7, 3) << " " << num(m.metrics.mae_2d, 7, 3) << " "
         << num(m.metrics.median_2d, 7, 3) << " " << num(m.metrics.p95_2d, 7, 3) << " "
-        << num(m.metrics.max_2d, 7, 3) << " " << num(m.ms_per_step, 9, 4) << " "
+        << num(m.metrics.max_2d, 7, 3) << " " << num(m.metrics.rmse_yaw_deg, 7, 2) << " "
+        << num(m.ms_per_step, 9, 4) << " "
         << num(m.realtime_factor, 8, 0) << " " << std::setw(7) << totalRejected(m) << "\n";
   }
 }
@@ -273,9 +277,9 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
   out << buf;
   for (const auto& w : dataset.warnings) out << "WARNING: " << w << "\n";
   std::snprintf(buf, sizeof buf,
-                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %9s %8s %7s\n", "method",
-                "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst", "mae",
-                "median", "p95", "max", "ms/step", "xRT", "reject");
+                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %7s %9s %8s %7s\n",
+                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst",
+                "mae", "median", "p95", "max", "yaw_deg", "ms/step", "xRT", "reject");
   out << buf;
   tableRows(out, methods);
   for (const auto& m : methods) {
@@ -293,7 +297,7 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
   }
   out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
          "samples with an estimate within 1 s; worst = the worst seed's rmse_2d; xRT = "
-         "real-time factor.\n";
+         "real-time factor; yaw_deg = heading RMSE [deg] (- when the reference has no heading).\n";
   boundsAndNlosLines(out, dataset, methods, bounds);
   rejectionLines(out, methods);
   return out.str();

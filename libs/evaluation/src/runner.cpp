@@ -20,6 +20,7 @@ loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed) {
   ctx.seed = seed;
   ctx.map = dataset.map;
   ctx.range_sigma = dataset.manifest.uwb_sigma;
+  for (const auto& tag : dataset.manifest.tags) ctx.robot_tags.push_back(tag.first);
   // NLOS models named by the methods' nlos_model: read from their files once per context.
   auto cache = std::make_shared<std::map<std::string, std::shared_ptr<const nlos::Model>>>();
   ctx.nlos_models = [cache](const std::string& path) {
@@ -147,13 +148,13 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
   double seconds = 0.0;
   long steps = 0;
   double sum_x = 0.0, sum_y = 0.0, sum_2d = 0.0, sum_mae = 0.0, sum_med = 0.0, sum_p95 = 0.0,
-         sum_max = 0.0, sum_final = 0.0;
+         sum_max = 0.0, sum_final = 0.0, sum_yaw = 0.0, sum_yaw_med = 0.0, sum_yaw_p95 = 0.0;
   for (int r = 0; r < repeat; ++r) {
     RunResult run = runMethod(dataset, spec, seed + static_cast<uint64_t>(r), extra, progress);
     const double gap = dataset.manifest.gt_max_gap;
     const auto errors = associate(run.trajectory, dataset.ground_truth, gap);
-    const Metrics m =
-        computeMetrics(errors, run.trajectory, dataset.ground_truth, std::max(1.0, gap / 2.0));
+    const Metrics m = computeMetrics(errors, run.trajectory, dataset.ground_truth,
+                                     std::max(1.0, gap / 2.0), dataset.manifest.reference_heading);
     rmse.push_back(m.rmse_2d);
     s.seed_runs.push_back({seed + static_cast<uint64_t>(r), m.rmse_2d, m.coverage, m.max_2d});
     sum_x += m.rmse_x;
@@ -164,6 +165,9 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
     sum_p95 += m.p95_2d;
     sum_max += m.max_2d;
     sum_final += m.final_2d;
+    sum_yaw += m.rmse_yaw_deg;
+    sum_yaw_med += m.median_yaw_deg;
+    sum_yaw_p95 += m.p95_yaw_deg;
     seconds += run.processing_seconds;
     steps += m.steps;
     if (r == 0) {
@@ -192,6 +196,9 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
   s.metrics.p95_2d = sum_p95 / n;
   s.metrics.max_2d = sum_max / n;
   s.metrics.final_2d = sum_final / n;
+  s.metrics.rmse_yaw_deg = sum_yaw / n;
+  s.metrics.median_yaw_deg = sum_yaw_med / n;
+  s.metrics.p95_yaw_deg = sum_yaw_p95 / n;
   double var = 0.0;
   for (double v : rmse) var += (v - s.metrics.rmse_2d) * (v - s.metrics.rmse_2d);
   s.rmse_2d_std = repeat > 1 ? std::sqrt(var / (n - 1)) : 0.0;

@@ -32,13 +32,21 @@ std::shared_ptr<const nlos::Model> resolveNlosModel(const RangeFrontEndParams& p
   return model;
 }
 
+int primaryTag(const EstimatorContext& context) {
+  return context.robot_tags.empty()
+             ? 0
+             : *std::min_element(context.robot_tags.begin(), context.robot_tags.end());
+}
+
 RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
-                             std::shared_ptr<const nlos::Model> nlos)
+                             std::shared_ptr<const nlos::Model> nlos, TagUse tags, int primary_tag)
     : params_(params),
+      nlos_(std::move(nlos)),
       anchors_(std::move(anchors)),
       increments_(uwb::IncrementQueueParams{params.iq_length, params.iq_zeta, params.iq_max_speed,
                                             params.iq_floor, 10}),
-      nlos_(std::move(nlos)) {}
+      tags_(tags),
+      primary_tag_(primary_tag) {}
 
 bool RangeFrontEnd::judge(AcceptedRange& r) {
   auto& m = r.measurement;
@@ -78,7 +86,9 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
     if (reason) *reason = r;
     return std::nullopt;
   };
-  if (range.tag_id != 0) return fail(uwb::RejectReason::kOtherTag);
+  if (!range.on_robot) return fail(uwb::RejectReason::kOtherTag);
+  if (tags_ == TagUse::kPrimary && range.tag_id != primary_tag_)
+    return fail(uwb::RejectReason::kSecondaryTag);
   if (auto bad = uwb::checkValidity(range.range, {1e-3, params_.max_range})) return fail(*bad);
   const uwb::Anchor* anchor = uwb::findAnchor(anchors_, range.anchor_id);
   if (!anchor) return fail(uwb::RejectReason::kUnknownAnchor);
@@ -87,7 +97,8 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
   const double dz = anchor->position.z() - range.tag_on_robot.z();
   const auto planar = uwb::projectToPlane(range.range, dz);
   if (!planar) return fail(uwb::RejectReason::kBelowHeight);
-  if (params_.increment_gate && !increments_.accept(range.anchor_id, range.t, range.range))
+  if (params_.increment_gate &&
+      !increments_.accept(range.anchor_id, range.t, range.range, range.tag_id))
     return fail(uwb::RejectReason::kIncrement);
   AcceptedRange accepted{range, anchor->position, *planar};
   if (nlos_ && !judge(accepted)) return fail(uwb::RejectReason::kNlosModel);
@@ -157,7 +168,8 @@ std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& 
   if (!open_.empty()) {
     const bool too_late = r.measurement.t - open_.front().measurement.t > window();
     const bool repeated = std::any_of(open_.begin(), open_.end(), [&](const AcceptedRange& o) {
-      return o.measurement.anchor_id == r.measurement.anchor_id;
+      return o.measurement.anchor_id == r.measurement.anchor_id &&
+             o.measurement.tag_id == r.measurement.tag_id;
     });
     if (too_late || repeated) {
       closed = std::move(open_);

@@ -7,6 +7,7 @@
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
+#include "uwbloc/localization/methods/uwb_multitag.hpp"
 #include "uwbloc/localization/methods/uwb_ins.hpp"
 #include "uwbloc/localization/methods/uwb_shkf.hpp"
 #include "uwbloc/localization/methods/federated_ekf.hpp"
@@ -48,6 +49,11 @@ Registry makeBuiltin() {
                               MultilaterationSolver::kGaussNewton));
   r.add(multilaterationMethod("uwb-chan", "UWB only: Chan's two-step WLS per epoch",
                               MultilaterationSolver::kChan));
+  r.add(makeMethod<UwbMultitag, UwbMultitagParams>(
+      "uwb-multitag",
+      "UWB only: pose and heading per epoch from all the robot's tags (Gauss-Newton on x, y, "
+      "theta; closed-form start)",
+      {"ranges"}));
   r.add(makeMethod<UwbKf, UwbKfParams>(
       "uwb-kf", "UWB only: constant-velocity KF on multilateration fixes (loosely coupled)",
       {"ranges"}));

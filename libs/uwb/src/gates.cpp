@@ -21,6 +21,7 @@ constexpr std::pair<RejectReason, const char*> kReasonNames[] = {
     {RejectReason::kTimeBackwards, "time_backwards"},
     {RejectReason::kOtherTag, "other_tag"},
     {RejectReason::kNlosModel, "nlos_model"},
+    {RejectReason::kSecondaryTag, "secondary_tag"},
 };
 }  // namespace
 
@@ -38,9 +39,9 @@ std::optional<RejectReason> checkValidity(double range, const ValidityParams& pa
   return std::nullopt;
 }
 
-bool IncrementQueueGate::accept(int anchor_id, double t, double range) {
+bool IncrementQueueGate::accept(int anchor_id, double t, double range, int tag_id) {
   const int n = std::clamp(params_.queue_length, 1, 32);
-  auto [it, inserted] = state_.try_emplace(anchor_id);
+  auto [it, inserted] = state_.try_emplace({anchor_id, tag_id});
   AnchorState& s = it->second;
   if (inserted) {
     s.last_range = range;

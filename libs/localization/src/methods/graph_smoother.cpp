@@ -22,7 +22,7 @@ constexpr size_t kMaxPosesForNoiseEstimate = 20000;
 }  // namespace
 
 GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context), params_(params), context_(context) {
+    : UwbEstimator(params.front, context, TagUse::kAll), params_(params), context_(context) {
   if (!context.initial_pose)
     throw ParamError("graph smoothing needs a start pose (the dataset's ground truth)");
   if (!params_.front_end.empty()) {

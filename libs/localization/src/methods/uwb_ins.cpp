@@ -35,7 +35,10 @@ constexpr double kOutputPeriod = 0.1;  ///< [s] between estimates from the IMU a
 }  // namespace
 
 UwbIns::UwbIns(const UwbInsParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context),
+    // Range mode predicts each range through its tag's lever arm and the heading, so every tag
+    // of the robot helps; fix mode multilaterates one tag point per epoch.
+    : UwbEstimator(params.front, context,
+                   params.mode == InsMode::kRanges ? TagUse::kAll : TagUse::kPrimary),
       params_(params),
       start_pose_(context.initial_pose),
       epochs_(params.epoch_window),

@@ -87,7 +87,8 @@ void LidarFieldMeasurement::addArtifacts(
 UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
                                          const EstimatorContext& context)
     : params_(params),
-      front_(params.front, context.anchors, resolveNlosModel(params.front, context)),
+      front_(params.front, context.anchors, resolveNlosModel(params.front, context), TagUse::kAll,
+             primaryTag(context)),
       map_(context.map),
       nlos_reason_(std::string("nlos_") + enumName(params.nlos)),
       pose_gate_(params.nlos_k * params.nlos_k),

@@ -35,12 +35,16 @@ struct Dataset {
 };
 
 /// Loads the manifest, the rawlog, the ground truth and the optional range-feature side file.
-/// The manifest's [tag] keys, when present, override the tag pose recorded in the rawlog.
-Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir);
+/// The manifest's [tag] keys, when present, override the tag pose recorded in the rawlog, and
+/// its bias_csv corrects the ranges (unless `apply_bias` is false: calibration reads raw ranges).
+Dataset loadDataset(const std::string& manifest_path, const std::string& data_dir,
+                    bool apply_bias = true);
 
 /// When the stream's timestamps have collapsed (far fewer distinct stamps than messages, as when
 /// a log was written with too few significant digits), a one-line explanation; nothing otherwise.
-/// Rule: at least 50 messages and fewer distinct stamps than a tenth of them.
+/// Rule: at least 50 messages, and fewer distinct readings (kind, stamp, tag, anchor) than a
+/// tenth of them: readings that share a stamp by design (one observation's ranges, several tags
+/// at once) still differ in what they measure.
 std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events);
 
 /// When the reference covers under half of the recording's time span (or none of it), a one-line

@@ -6,6 +6,8 @@
 //   ground_truth        = path                 (optional)
 //   ground_truth_format = step_xyphi | time_xyphi | tum
 //   gt_max_gap          = 1.0                  (longest ground-truth gap to interpolate over [s])
+//   reference_heading   = true                 (false: the reference's heading is not measured,
+//                                               so no heading error is scored)
 //   map                 = path                 (optional)
 //   range_features      = path                 (optional side file, see hanyang_import.hpp)
 //
@@ -17,8 +19,14 @@
 //   # An anchor p_a maps to p_gt = R(yaw)^T (p_a - (x, y)); z is unchanged.
 //   gt_origin_in_anchor_frame = 2 4 0
 //
+//   bias_csv = path                            (optional: per-link range bias, see RangeBias)
+//
 //   [tag]                                      (optional: overrides the rawlog's sensor pose)
 //   height = 1.12    lever_arm_x = 0.16    lever_arm_y = 0
+//   # Several tags on the robot: one key per tag id, its position on the robot "x y z" [m]
+//   # (x forward, y left, z up: z is the tag's height). Ranges from a listed tag are the
+//   # robot's own; ranges from an unlisted tag other than 0 come from a mobile node.
+//   tag_0 = -0.0689 -0.1423 0.965    tag_1 = -0.0750 0.1402 0.966
 //
 //   [uwb]                                      (optional)
 //   sigma = 0.10                               range noise measured on this dataset [m]: the
@@ -57,6 +65,23 @@ struct BoundsSpec {
   double odom_sigma_theta_per_m = 0.005;   ///< odometry rotation noise per metre [rad/m]
 };
 
+/// A range bias: measured = (1 + scale) * true + bias, for one anchor and one tag (or every tag).
+struct RangeBias {
+  int anchor_id = 0;
+  std::optional<int> tag_id;  ///< nothing: every tag
+  double bias = 0.0;          ///< [m]
+  double scale = 0.0;         ///< dimensionless
+  double sigma = 0.0;         ///< range noise std after the correction [m] (0: not estimated)
+  long samples = 0;           ///< ranges the estimate came from (0: not known)
+};
+
+/// Reads a bias CSV: "anchor_id,tag_id,bias[,scale[,sigma[,samples]]]" rows, tag_id "*" for every
+/// tag (a header row is allowed). Throws InputError naming the file and line.
+std::vector<RangeBias> loadBiasCsv(const std::string& path);
+std::string formatBiasCsv(const std::vector<RangeBias>& biases);
+/// The bias that applies to (anchor, tag): the tag's own row before an every-tag row.
+const RangeBias* findBias(const std::vector<RangeBias>& biases, int anchor_id, int tag_id);
+
 struct Manifest {
   std::string path;  ///< the manifest file itself
   std::string name;
@@ -64,11 +89,15 @@ struct Manifest {
   std::string ground_truth;
   GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
   double gt_max_gap = 1.0;  ///< estimates are scored only between GT samples this close [s]
+  bool reference_heading = true;  ///< the reference's heading is measured (scored as yaw error)
   std::string map;
   std::string range_features;
   std::vector<uwb::Anchor> anchors;  ///< already in the map/GT frame
   std::optional<double> tag_height;
   std::optional<Eigen::Vector2d> lever_arm;
+  std::map<int, Eigen::Vector3d> tags;  ///< [tag] tag_<id>: the robot's tags, position on robot
+  std::string bias_csv;                 ///< [anchors] bias_csv
+  std::vector<RangeBias> biases;        ///< its rows
   std::optional<BoundsSpec> bounds;
   std::optional<double> uwb_sigma;  ///< [uwb] sigma: the methods' default range noise [m]
 };
@@ -91,12 +120,15 @@ struct ManifestDraft {
   std::string ground_truth;
   GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
   std::optional<double> gt_max_gap;
+  bool reference_heading = true;
   std::string map;
   std::string range_features;
   std::string anchors_csv;  ///< the anchors file; when empty, `anchors` are written inline
   std::vector<uwb::Anchor> anchors;
   std::optional<double> tag_height;
   std::optional<Eigen::Vector2d> lever_arm;
+  std::map<int, Eigen::Vector3d> tags;  ///< [tag] tag_<id> = x y z
+  std::string bias_csv;                 ///< [anchors] bias_csv
   /// [bounds]: the recording's LOS range noise, and (motion = odometry) its odometry noise
   /// (xy per metre, theta per radian, theta per metre).
   std::optional<double> bounds_range_sigma;

@@ -43,6 +43,9 @@ struct UwbSimSpec {
   std::map<int, double> anchor_bias;  ///< constant bias per anchor id [m]
   bool features = false;              ///< write received and first-path power
   Eigen::Vector3d tag = Eigen::Vector3d(0, 0, 1.0);  ///< tag on the robot [m]
+  /// More tags on the robot ([uwb] tag_<id> = x y z; id 1 is the [tag2] mobile node's): each
+  /// ranges to every anchor at the same instants as tag 0.
+  std::map<int, Eigen::Vector3d> extra_tags;
   double max_range = 60.0;                           ///< no ranges beyond this [m]
 };
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -17,6 +18,9 @@ struct ErrorSample {
   double t = 0.0;
   double ex = 0.0, ey = 0.0;  ///< estimate minus truth [m]
   double e2d = 0.0;           ///< planar error [m]
+  /// Heading error, estimate minus truth, wrapped to (-pi, pi] [rad]; NaN when the estimate's
+  /// heading is not valid (a method that has not observed it yet).
+  double eyaw = 0.0;
 };
 
 /// One error sample per estimate that has ground truth at its time.
@@ -32,6 +36,10 @@ struct Metrics {
   double rmse_2d = 0.0;  ///< sqrt(rmse_x^2 + rmse_y^2), the PF-IBAS paper's RMSE_z
   double mae_2d = 0.0, median_2d = 0.0, p95_2d = 0.0, max_2d = 0.0;
   double final_2d = 0.0;  ///< error of the last scored estimate: the drift of odometry-like methods
+  /// Heading error [deg] over the estimates with a valid heading: RMSE, median and 95th
+  /// percentile of |error|. NaN when the reference has no heading (manifest:
+  /// reference_heading = false) or no such estimate was associated.
+  double rmse_yaw_deg = NAN, median_yaw_deg = NAN, p95_yaw_deg = NAN;
   std::vector<std::pair<double, double>> cdf;  ///< (error [m], fraction <= error), 21 points
 };
 
@@ -39,7 +47,8 @@ struct Metrics {
 /// ground-truth sample to cover it.
 Metrics computeMetrics(const std::vector<ErrorSample>& errors,
                        const std::vector<loc::PoseEstimate>& estimates,
-                       const std::vector<data::TimedPose>& gt, double coverage_tolerance = 1.0);
+                       const std::vector<data::TimedPose>& gt, double coverage_tolerance = 1.0,
+                       bool reference_heading = true);
 
 /// Quantile q in [0, 1] by linear interpolation of the sorted values.
 double quantile(std::vector<double> values, double q);

@@ -76,6 +76,8 @@ struct EstimatorContext {
   /// The dataset's measured LOS range noise, when its manifest states one: the default of
   /// every method's `sigma` parameter (a spec or config value still wins).
   std::optional<double> range_sigma;
+  /// The robot's tags that the manifest lists ([tag] tag_<id>); empty: tag 0 alone.
+  std::vector<int> robot_tags;
   /// Resolves a method's `nlos_model=` name to a model. The application loads the file (an
   /// estimator never opens one); empty: a method given nlos_model refuses it.
   std::function<std::shared_ptr<const nlos::Model>(const std::string&)> nlos_models;

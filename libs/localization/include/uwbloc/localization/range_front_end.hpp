@@ -73,6 +73,15 @@ struct RangeFrontEndParams {
 std::shared_ptr<const nlos::Model> resolveNlosModel(const RangeFrontEndParams& params,
                                                     const EstimatorContext& context);
 
+/// Which of the robot's tags a method takes. Methods whose state is the robot's pose predict a
+/// range from any tag through its lever arm (kAll); methods that track one tag point take the
+/// primary tag's ranges only (the lowest id the manifest lists, else tag 0) and count the
+/// others as rejected (secondary_tag).
+enum class TagUse { kPrimary, kAll };
+
+/// The primary tag of a context: the lowest listed robot tag, else 0.
+int primaryTag(const EstimatorContext& context);
+
 /// A range that passed the front end.
 struct AcceptedRange {
   uwb::Range measurement;
@@ -89,7 +98,8 @@ class RangeFrontEnd {
  public:
   /// `nlos`: the model named by params.nlos_model (resolveNlosModel), or none.
   RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
-                std::shared_ptr<const nlos::Model> nlos = nullptr);
+                std::shared_ptr<const nlos::Model> nlos = nullptr, TagUse tags = TagUse::kPrimary,
+                int primary_tag = 0);
   /// Returns the accepted range, or the reason it was rejected.
   std::optional<AcceptedRange> accept(const uwb::Range& range, uwb::RejectReason* reason);
   const std::vector<uwb::Anchor>& anchors() const { return anchors_; }
@@ -103,14 +113,18 @@ class RangeFrontEnd {
   std::vector<uwb::Anchor> anchors_;
   uwb::IncrementQueueGate increments_;
   double last_t_ = -1e300;
+  TagUse tags_ = TagUse::kPrimary;
+  int primary_tag_ = 0;
 };
 
 /// Base of the UWB methods: owns the front end and turns an event into an accepted range,
 /// counting each rejection against its anchor.
 class UwbEstimator : public Estimator {
  protected:
-  UwbEstimator(const RangeFrontEndParams& params, const EstimatorContext& context)
-      : front_(params, context.anchors, resolveNlosModel(params, context)) {}
+  UwbEstimator(const RangeFrontEndParams& params, const EstimatorContext& context,
+               TagUse tags = TagUse::kPrimary)
+      : front_(params, context.anchors, resolveNlosModel(params, context), tags,
+               primaryTag(context)) {}
   /// The accepted range carried by `event`; nothing for other events and rejected ranges.
   std::optional<AcceptedRange> acceptRange(const Event& event);
 
@@ -118,7 +132,7 @@ class UwbEstimator : public Estimator {
 };
 
 /// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds
-/// after its first range, or a second range from an anchor already in it.
+/// after its first range, or a second range of an anchor-tag link already in it.
 ///
 /// window = auto takes the span from the data's own rate: one round of ranges, from every anchor
 /// seen, 1.2 (n_anchors - 1) times the median gap between consecutive ranges (over the last 64),
@@ -150,8 +164,8 @@ class EpochBuffer {
 class EpochUwbEstimator : public UwbEstimator {
  protected:
   EpochUwbEstimator(const RangeFrontEndParams& params, const EstimatorContext& context,
-                    AutoDouble window)
-      : UwbEstimator(params, context), epochs_(window) {}
+                    AutoDouble window, TagUse tags = TagUse::kPrimary)
+      : UwbEstimator(params, context, tags), epochs_(window) {}
   std::optional<PoseEstimate> doProcess(const Event& event) final;
   std::optional<PoseEstimate> doFinish() final;
   virtual std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) = 0;

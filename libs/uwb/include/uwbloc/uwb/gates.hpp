@@ -24,6 +24,7 @@ enum class RejectReason {
   kTimeBackwards,  ///< timestamp earlier than the previous one
   kOtherTag,       ///< measured by another tag (a mobile node), not by the robot's own
   kNlosModel,      ///< an NLOS model judged it NLOS (P >= nlos_reject), or its correction failed
+  kSecondaryTag,   ///< from another of the robot's tags: the method tracks one tag point
 };
 
 /// Stable snake_case names used in metrics.json's "rejected" map.
@@ -45,7 +46,8 @@ struct IncrementQueueParams {
   int max_consecutive_rejects = 10;  ///< after this many, re-seed on the newest range
 };
 
-/// Range-increment queue of the mobile-node paper (section 2.1), per anchor.
+/// Range-increment queue of the mobile-node paper (section 2.1), per anchor (and tag: each
+/// anchor-tag link has its own queue).
 ///
 /// For anchor i keep the last accepted range X_i and a ring buffer of its last n accepted
 /// increments ΔX_i(t-n+1..t). A new range X_i(t+1) at time t+1 has increment
@@ -63,7 +65,7 @@ class IncrementQueueGate {
  public:
   explicit IncrementQueueGate(IncrementQueueParams params = {}) : params_(params) {}
   /// True when accepted; updates the anchor's queue only then.
-  bool accept(int anchor_id, double t, double range);
+  bool accept(int anchor_id, double t, double range, int tag_id = 0);
   int reseeds() const { return reseeds_; }
 
  private:
@@ -76,7 +78,7 @@ class IncrementQueueGate {
     int consecutive_rejects = 0;
   };
   IncrementQueueParams params_;
-  std::map<int, AnchorState> state_;
+  std::map<std::pair<int, int>, AnchorState> state_;  ///< by (anchor, tag)
   int reseeds_ = 0;
 };
 

@@ -17,7 +17,10 @@ struct Anchor {
 struct Range {
   double t = 0.0;      ///< timestamp [s]
   int anchor_id = 0;   ///< which anchor answered (>= kMobileAnchorBase: another tag)
-  int tag_id = 0;      ///< which tag measured: 0 is the robot's own, others are mobile nodes
+  int tag_id = 0;      ///< which tag measured
+  /// The tag is on the robot (tag_on_robot says where); otherwise it is a mobile node. Readers
+  /// set it for tag 0; a manifest's [tag] tag_<id> keys name the robot's other tags.
+  bool on_robot = true;
   double range = 0.0;  ///< measured 3D distance [m]
   /// Tag position on the robot (x forward, y left, z up) [m]: lever arm and tag height.
   Eigen::Vector3d tag_on_robot = Eigen::Vector3d::Zero();

@@ -1,0 +1,243 @@
+#include "uwbloc/localization/methods/uwb_multitag.hpp"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <map>
+
+#include "uwbloc/uwb/pose2.hpp"
+#include "uwbloc/uwb/range_model.hpp"
+
+namespace uwbloc::loc {
+
+namespace {
+
+// Weighted Gauss-Newton with Huber weights; `fix_heading` solves for x, y alone.
+std::optional<MultitagFix> gaussNewton(const std::vector<AcceptedRange>& epoch, double sigma,
+                                       double huber, int max_iterations, Eigen::Vector3d pose,
+                                       bool fix_heading) {
+  const int n = fix_heading ? 2 : 3;
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  double cost = 0.0;
+  for (int it = 0; it <= max_iterations; ++it) {
+    h.setZero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    cost = 0.0;
+    const double c = std::cos(pose.z()), s = std::sin(pose.z());
+    for (const auto& r : epoch) {
+      const Eigen::Vector3d& l = r.measurement.tag_on_robot;
+      const Eigen::Vector3d tag(pose.x() + c * l.x() - s * l.y(), pose.y() + s * l.x() + c * l.y(),
+                                l.z());
+      const Eigen::Vector3d d = tag - r.anchor;
+      const double dist = std::max(d.norm(), 1e-6);
+      const double sd = sigma * std::sqrt(r.variance_scale);
+      const double e = (r.measurement.range - dist) / sd;
+      const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
+      // d(dist)/d(x, y, theta); the tag moves with theta by R'(theta) l.
+      const Eigen::Vector3d j(d.x() / dist, d.y() / dist,
+                              (d.x() * (-s * l.x() - c * l.y()) + d.y() * (c * l.x() - s * l.y())) /
+                                  dist);
+      const Eigen::Vector3d js = j / sd;
+      h += w * js * js.transpose();
+      g += w * js * e;
+      cost += w * e * e;
+    }
+    if (it == max_iterations) break;
+    Eigen::Vector3d step = Eigen::Vector3d::Zero();
+    const auto hn = h.topLeftCorner(n, n);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(hn);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
+    step.head(n) = ldlt.solve(g.head(n));
+    if (!step.allFinite()) return std::nullopt;
+    pose += step;
+    pose.z() = wrapAngle(pose.z());
+    if (step.head<2>().norm() < 1e-5 && std::abs(step.z()) < 1e-6) break;
+  }
+  if (!pose.allFinite()) return std::nullopt;
+  MultitagFix fix;
+  fix.pose = pose;
+  fix.rms_residual = sigma * std::sqrt(cost / static_cast<double>(epoch.size()));
+  const Eigen::MatrixXd hn = h.topLeftCorner(n, n);
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(hn);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
+  fix.covariance.setZero();
+  fix.covariance.topLeftCorner(n, n) = ldlt.solve(Eigen::MatrixXd::Identity(n, n));
+  if (fix_heading) fix.covariance(2, 2) = M_PI * M_PI;
+  return fix;
+}
+
+// Closed-form start: multilaterate each tag with three ranges or more, then fit the lever arms
+// to those points (2D Procrustes). Nothing when no tag can be multilaterated.
+std::optional<Eigen::Vector3d> closedFormStart(const std::vector<AcceptedRange>& epoch,
+                                               double sigma, int* solved_tags) {
+  std::map<int, std::vector<const AcceptedRange*>> by_tag;
+  for (const auto& r : epoch) by_tag[r.measurement.tag_id].push_back(&r);
+  std::vector<Eigen::Vector2d> lever, point;
+  for (const auto& [tag, ranges] : by_tag) {
+    if (ranges.size() < 3) continue;
+    std::vector<uwb::PlanarRange> planar;
+    for (const auto* r : ranges) planar.push_back({r->anchor.head<2>(), r->planar, sigma});
+    const uwb::Fix fix = uwb::solveGaussNewton(planar);
+    if (!fix.ok()) continue;
+    lever.push_back(ranges.front()->measurement.tag_on_robot.head<2>());
+    point.push_back(fix.position);
+  }
+  *solved_tags = static_cast<int>(point.size());
+  if (point.empty()) return std::nullopt;
+  if (point.size() == 1) return Eigen::Vector3d(point[0].x(), point[0].y(), 0.0);
+  Eigen::Vector2d lc = Eigen::Vector2d::Zero(), pc = Eigen::Vector2d::Zero();
+  for (size_t i = 0; i < point.size(); ++i) {
+    lc += lever[i];
+    pc += point[i];
+  }
+  lc /= static_cast<double>(point.size());
+  pc /= static_cast<double>(point.size());
+  double sin_sum = 0.0, cos_sum = 0.0;
+  for (size_t i = 0; i < point.size(); ++i) {
+    const Eigen::Vector2d a = lever[i] - lc, b = point[i] - pc;
+    cos_sum += a.dot(b);
+    sin_sum += a.x() * b.y() - a.y() * b.x();
+  }
+  const double theta = std::atan2(sin_sum, cos_sum);
+  const Eigen::Vector2d p = pc - rotation(theta) * lc;
+  return Eigen::Vector3d(p.x(), p.y(), theta);
+}
+
+}  // namespace
+
+std::optional<MultitagFix> solveMultitag(const std::vector<AcceptedRange>& epoch, double sigma,
+                                         double huber, int max_iterations,
+                                         const std::optional<Eigen::Vector3d>& start) {
+  if (epoch.size() < 3) return std::nullopt;
+  std::map<int, int> tags;
+  for (const auto& r : epoch) ++tags[r.measurement.tag_id];
+  const int n_tags = static_cast<int>(tags.size());
+  const bool fix_heading = n_tags < 2;
+  std::optional<MultitagFix> best;
+  auto keep = [&](std::optional<MultitagFix> f) {
+    if (f && (!best || f->rms_residual < best->rms_residual)) best = f;
+  };
+  if (start) {
+    keep(gaussNewton(epoch, sigma, huber, max_iterations, *start, fix_heading));
+  } else {
+    int solved = 0;
+    const auto cf = closedFormStart(epoch, sigma, &solved);
+    if (!cf) return std::nullopt;
+    if (solved >= 2 || fix_heading) {
+      keep(gaussNewton(epoch, sigma, huber, max_iterations, *cf, fix_heading));
+    } else {
+      // One tag multilaterated: its point, with the heading unknown; try four.
+      for (int k = 0; k < 4; ++k) {
+        const double th = k * M_PI / 2;
+        const Eigen::Vector2d tag_point = cf->head<2>();
+        const Eigen::Vector2d l = epoch.front().measurement.tag_on_robot.head<2>();
+        const Eigen::Vector2d p = tag_point - rotation(th) * l;
+        keep(gaussNewton(epoch, sigma, huber, max_iterations, {p.x(), p.y(), th}, false));
+      }
+    }
+  }
+  if (best) best->tags = n_tags;
+  return best;
+}
+
+UwbMultitag::UwbMultitag(const UwbMultitagParams& params, const EstimatorContext& context)
+    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kAll),
+      params_(params) {}
+
+Eigen::Matrix3d UwbMultitag::scaledCovariance(const MultitagFix& fix, size_t ranges) {
+  const double sigma = params_.front.sigmaValue();
+  if (ranges > 3) {
+    const double v = fix.rms_residual * fix.rms_residual * static_cast<double>(ranges) /
+                     static_cast<double>(ranges - 3);
+    constexpr size_t kWindow = 201;
+    if (variances_.size() < kWindow)
+      variances_.push_back(v);
+    else
+      variances_[variance_count_ % kWindow] = v;
+    ++variance_count_;
+  }
+  if (variances_.size() < 5) return fix.covariance;
+  std::vector<double> v = variances_;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return fix.covariance * (std::max(v[v.size() / 2], 1e-6) / (sigma * sigma));
+}
+
+bool UwbMultitag::filter(double t, const MultitagFix& fix, const Eigen::Matrix3d& r) {
+  if (!filtering_ || t - t_ > params_.restart_after) {
+    x_.setZero();
+    x_.head<3>() = fix.pose;
+    p_.setZero();
+    p_.topLeftCorner<3, 3>() = r;
+    p_.bottomRightCorner<3, 3>() = Eigen::Matrix3d::Identity();  // 1 m/s, 1 rad/s
+    t_ = t;
+    filtering_ = true;
+    gated_in_a_row_ = 0;
+    return true;
+  }
+  const double dt = std::max(0.0, t - t_);
+  t_ = t;
+  Eigen::Matrix<double, 6, 6> f = Eigen::Matrix<double, 6, 6>::Identity();
+  f.topRightCorner<3, 3>() = dt * Eigen::Matrix3d::Identity();
+  Eigen::Matrix<double, 6, 6> q = Eigen::Matrix<double, 6, 6>::Zero();
+  const Eigen::Vector3d psd(params_.accel_psd, params_.accel_psd, params_.yaw_accel_psd);
+  for (int i = 0; i < 3; ++i) {
+    q(i, i) = psd(i) * dt * dt * dt / 3.0;
+    q(i, i + 3) = q(i + 3, i) = psd(i) * dt * dt / 2.0;
+    q(i + 3, i + 3) = psd(i) * dt;
+  }
+  x_ = f * x_;
+  x_(2) = wrapAngle(x_(2));
+  p_ = f * p_ * f.transpose() + q;
+  Eigen::Vector3d innovation = fix.pose - x_.head<3>();
+  innovation.z() = wrapAngle(innovation.z());
+  const Eigen::Matrix3d s = p_.topLeftCorner<3, 3>() + r;
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(s);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return false;
+  if (innovation.dot(ldlt.solve(innovation)) > params_.gate) {
+    if (++gated_in_a_row_ >= params_.max_gated) {
+      ++stats_.resets;
+      filtering_ = false;
+      return filter(t, fix, r);
+    }
+    return false;
+  }
+  gated_in_a_row_ = 0;
+  const Eigen::Matrix<double, 6, 3> k = p_.leftCols<3>() * ldlt.solve(Eigen::Matrix3d::Identity());
+  x_ += k * innovation;
+  x_(2) = wrapAngle(x_(2));
+  const Eigen::Matrix<double, 6, 6> ikh = Eigen::Matrix<double, 6, 6>::Identity() - k * Eigen::Matrix<double, 3, 6>::Identity();
+  p_ = ikh * p_ * ikh.transpose() + k * r * k.transpose();
+  return true;
+}
+
+std::optional<PoseEstimate> UwbMultitag::onEpoch(const std::vector<AcceptedRange>& epoch) {
+  const double t = epochTime(epoch);
+  std::optional<Eigen::Vector3d> start;
+  if (last_ && t - last_t_ <= params_.restart_after) start = last_;
+  const auto fix = solveMultitag(epoch, params_.front.sigmaValue(), params_.huber,
+                                 params_.max_iterations, start);
+  if (!fix) {
+    countRejection(epoch.size() < 3 ? "epoch_too_few_ranges" : "epoch_no_solution");
+    return std::nullopt;
+  }
+  if (fix->tags >= 2) heading_seen_ = true;
+  last_ = fix->pose;
+  last_t_ = t;
+  const Eigen::Matrix3d r = scaledCovariance(*fix, epoch.size());
+  PoseEstimate e;
+  e.t = t;
+  e.heading_valid = heading_seen_;
+  if (!params_.smooth) {
+    e.pose = fix->pose;
+    e.covariance = r;
+    return e;
+  }
+  if (!filter(t, *fix, r)) {
+    countRejection("fix_gated");
+    return std::nullopt;
+  }
+  e.pose = x_.head<3>();
+  e.covariance = p_.topLeftCorner<3, 3>();
+  return e;
+}
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,277 @@
+// Several tags on one robot: the manifest's tag list and bias file, the per-epoch pose solver
+// (uwb-multitag), heading from geometry without motion, range calibration, and the LIAS-CUHKSZ
+// importer on the shared recordings.
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
+#include <cmath>
+#include <random>
+
+#include "simulated_scenario.hpp"
+#include "test_helpers.hpp"
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/lias_import.hpp"
+#include "uwbloc/dataset/manifest.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/evaluation/calibration.hpp"
+#include "uwbloc/evaluation/metrics.hpp"
+#include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/localization/methods/uwb_multitag.hpp"
+#include "uwbloc/uwb/pose2.hpp"
+#include "uwbloc/uwb/range_model.hpp"
+
+namespace uwbloc {
+namespace {
+
+const std::vector<Eigen::Vector3d> kAnchors = {
+    {0, 0, 1.5}, {8, 0, 1.5}, {8, 8, 1.5}, {0, 8, 1.5}};
+const std::vector<Eigen::Vector3d> kTags = {
+    {-0.07, -0.14, 1.0}, {-0.075, 0.14, 1.0}, {0.20, 0.145, 1.0}};
+
+// One epoch of exact ranges from the given tags at `pose`.
+std::vector<loc::AcceptedRange> epochAt(const Eigen::Vector3d& pose, const std::vector<int>& tags) {
+  std::vector<loc::AcceptedRange> epoch;
+  for (int k : tags)
+    for (size_t a = 0; a < kAnchors.size(); ++a) {
+      loc::AcceptedRange r;
+      r.measurement.tag_id = k;
+      r.measurement.anchor_id = static_cast<int>(a);
+      r.measurement.tag_on_robot = kTags[static_cast<size_t>(k)];
+      r.anchor = kAnchors[a];
+      r.measurement.range = uwb::predictRange(pose, r.measurement.tag_on_robot, r.anchor);
+      const double dz = r.anchor.z() - r.measurement.tag_on_robot.z();
+      r.planar = std::sqrt(r.measurement.range * r.measurement.range - dz * dz);
+      epoch.push_back(r);
+    }
+  return epoch;
+}
+
+TEST(Multitag, SolvesAnEpochExactlyFromNoStart) {
+  for (double deg : {-170.0, -60.0, 10.0, 95.0, 179.0}) {
+    const Eigen::Vector3d truth(3.2, 5.1, deg * M_PI / 180.0);
+    const auto fix = loc::solveMultitag(epochAt(truth, {0, 1, 2}), 0.1, 2.0, 20, std::nullopt);
+    ASSERT_TRUE(fix.has_value()) << deg;
+    EXPECT_NEAR(fix->pose.x(), truth.x(), 1e-6) << deg;
+    EXPECT_NEAR(fix->pose.y(), truth.y(), 1e-6) << deg;
+    EXPECT_NEAR(wrapAngle(fix->pose.z() - truth.z()), 0.0, 1e-6) << deg;
+    EXPECT_EQ(fix->tags, 3);
+    // Two tags are enough for the heading.
+    const auto two = loc::solveMultitag(epochAt(truth, {0, 2}), 0.1, 2.0, 20, std::nullopt);
+    ASSERT_TRUE(two.has_value()) << deg;
+    EXPECT_NEAR(wrapAngle(two->pose.z() - truth.z()), 0.0, 1e-6) << deg;
+  }
+}
+
+// The covariance is (J^T J)^-1 sigma^2: checked against the numeric Jacobian of the ranges.
+TEST(Multitag, CovarianceMatchesTheNumericJacobian) {
+  const Eigen::Vector3d truth(2.0, 6.0, 0.7);
+  const auto epoch = epochAt(truth, {0, 1, 2});
+  const double sigma = 0.1;
+  const auto fix = loc::solveMultitag(epoch, sigma, 1e9, 20, truth);
+  ASSERT_TRUE(fix.has_value());
+  Eigen::MatrixXd j(epoch.size(), 3);
+  for (size_t i = 0; i < epoch.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Vector3d plus = truth, minus = truth;
+      plus(c) += 1e-6;
+      minus(c) -= 1e-6;
+      j(static_cast<long>(i), c) =
+          (uwb::predictRange(plus, epoch[i].measurement.tag_on_robot, epoch[i].anchor) -
+           uwb::predictRange(minus, epoch[i].measurement.tag_on_robot, epoch[i].anchor)) /
+          2e-6;
+    }
+  const Eigen::Matrix3d jtj = j.transpose() * j;
+  const Eigen::Matrix3d expected = jtj.inverse() * sigma * sigma;
+  EXPECT_LT((fix->covariance - expected).norm(), 1e-6 * expected.norm());
+}
+
+TEST(Multitag, OneTagKeepsTheGivenHeading) {
+  const Eigen::Vector3d truth(4.0, 3.0, 1.0);
+  const auto fix =
+      loc::solveMultitag(epochAt(truth, {2}), 0.1, 2.0, 20, Eigen::Vector3d(3.8, 3.3, 1.0));
+  ASSERT_TRUE(fix.has_value());
+  EXPECT_EQ(fix->tags, 1);
+  EXPECT_NEAR(fix->pose.z(), 1.0, 1e-12);
+  EXPECT_NEAR((fix->pose.head<2>() - truth.head<2>()).norm(), 0.0, 1e-6);
+  EXPECT_DOUBLE_EQ(fix->covariance(2, 2), M_PI * M_PI);
+}
+
+// The robot stands still for the first 10 s: with three tags the heading is known within a
+// second of the first estimate, with no start pose given; a single-tag filter has none.
+TEST(Multitag, HeadingConvergesWithinOneSecondWithoutMotion) {
+  const data::Dataset ds = test::simulatedScenario("multitag_room", 1);
+  ASSERT_EQ(ds.manifest.tags.size(), 3u);
+  const auto run = eval::runMethod(ds, "uwb-multitag", 1);
+  ASSERT_FALSE(run.trajectory.empty());
+  const double t0 = run.trajectory.front().t;
+  double worst = 0.0, sum = 0.0;
+  long n = 0;
+  for (const auto& e : run.trajectory) {
+    if (e.t < t0 + 1.0 || e.t > ds.start_time + 9.5) continue;
+    const auto truth = eval::interpolateGroundTruth(ds.ground_truth, e.t, 1.0);
+    ASSERT_TRUE(truth.has_value());
+    ASSERT_TRUE(e.heading_valid);
+    const double err = std::abs(wrapAngle(e.pose.z() - truth->z()));
+    worst = std::max(worst, err);
+    sum += err;
+    ++n;
+  }
+  std::printf("[ HEADING  ] uwb-multitag, standing still, 1 s after its first estimate: mean "
+              "|heading error| %.2f deg, worst %.2f deg over %ld estimates\n",
+              sum / n * 180.0 / M_PI, worst * 180.0 / M_PI, n);
+  EXPECT_GT(n, 50);
+  EXPECT_LT(sum / n * 180.0 / M_PI, 5.0);
+  EXPECT_LT(worst * 180.0 / M_PI, 15.0);
+  // The single-tag filter takes tag 0 only (the others are counted as secondary_tag) and has no
+  // heading while the robot stands still.
+  const auto ekf = eval::runMethod(ds, "uwb-ekf", 1);
+  EXPECT_GT(ekf.statistics.rejected.at("secondary_tag"), 0);
+  for (const auto& e : ekf.trajectory)
+    if (e.t < ds.start_time + 9.5) EXPECT_FALSE(e.heading_valid) << e.t;
+}
+
+// Anchors moved by 0.5 m and per-anchor biases of +-0.3 m: calibration against the reference
+// recovers the anchors within 5 cm and the biases within 3 cm.
+TEST(Calibration, RecoversPerturbedAnchorsAndBiases) {
+  data::Dataset ds = test::simulatedScenario("multitag_room", 3);
+  const std::map<int, double> bias = {{1, 0.3}, {2, -0.3}, {3, 0.25}, {4, -0.2}};
+  for (auto& e : ds.events)
+    if (auto* r = std::get_if<uwb::Range>(&e)) r->range += bias.at(r->anchor_id);
+  const auto truth = ds.anchors;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> angle(-M_PI, M_PI);
+  for (auto& a : ds.anchors) {
+    const double th = angle(rng);
+    a.position.head<2>() += 0.5 * Eigen::Vector2d(std::cos(th), std::sin(th));
+  }
+  eval::CalibrationOptions o;
+  o.per_link = false;
+  for (const auto& a : ds.anchors) o.free_anchors.push_back(a.id);
+  const auto result = eval::calibrateRanges({&ds}, o);
+  for (const auto& a : truth) {
+    const auto* got = uwb::findAnchor(result.anchors, a.id);
+    ASSERT_NE(got, nullptr);
+    const double err = (got->position - a.position).norm();
+    std::printf("[ CALIB    ] anchor %d: position error %.4f m\n", a.id, err);
+    EXPECT_LT(err, 0.05) << a.id;
+  }
+  for (const auto& b : result.biases) {
+    std::printf("[ CALIB    ] anchor %d: bias %.4f m (true %.2f), sigma %.4f m\n", b.anchor_id,
+                b.bias, bias.at(b.anchor_id), b.sigma);
+    EXPECT_NEAR(b.bias, bias.at(b.anchor_id), 0.03) << b.anchor_id;
+    EXPECT_NEAR(b.sigma, 0.05, 0.01) << b.anchor_id;
+  }
+}
+
+TEST(Manifest, ReadsTheTagListAndTheBiasFile) {
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "a.csv", "id,x,y,z\n1,0,0,1\n2,5,0,1\n");
+  test::writeText(dir / "b.csv", "anchor_id,tag_id,bias\n1,0,0.25\n1,*,0.1\n2,*,-0.05,0.01\n");
+  const auto m = data::loadManifest(
+      test::writeText(dir / "m.ini",
+                      "[dataset]\nrawlog = x.rawlog\n[anchors]\nanchors_csv = a.csv\nbias_csv = "
+                      "b.csv\n[tag]\ntag_0 = 0.1 -0.2 1.0\ntag_4 = -0.3 0.2 1.1\n"),
+      "");
+  ASSERT_EQ(m.tags.size(), 2u);
+  EXPECT_EQ(m.tags.at(4), Eigen::Vector3d(-0.3, 0.2, 1.1));
+  ASSERT_EQ(m.biases.size(), 3u);
+  EXPECT_DOUBLE_EQ(data::findBias(m.biases, 1, 0)->bias, 0.25);  // the tag's own row
+  EXPECT_DOUBLE_EQ(data::findBias(m.biases, 1, 4)->bias, 0.1);   // the every-tag row
+  EXPECT_DOUBLE_EQ(data::findBias(m.biases, 2, 0)->scale, 0.01);
+  EXPECT_EQ(data::findBias(m.biases, 3, 0), nullptr);
+  // Errors name the file and line.
+  test::expectErrorMentions<data::InputError>(
+      [&] {
+        data::loadManifest(test::writeText(dir / "bad.ini",
+                                           "[dataset]\nrawlog = x.rawlog\n[anchors]\nanchors_csv "
+                                           "= a.csv\n[tag]\ntag_1 = 0.1 oops 1\n"),
+                           "");
+      },
+      {"bad.ini:6", "tag_1", "x y z"});
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::loadBiasCsv(test::writeText(dir / "bb.csv", "1,0,0.1\n1,0,0.2\n")); },
+      {"bb.csv:2", "duplicate"});
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::loadBiasCsv(test::writeText(dir / "bs.csv", "1,0,0.1,0.9\n")); },
+      {"bs.csv:1", "scale"});
+}
+
+// Three tags ranging at the same instants are not a collapsed clock.
+TEST(Dataset, SynchronousTagsAreNotCollapsedTime) {
+  const data::Dataset ds = test::simulatedScenario("multitag_room", 2);
+  EXPECT_FALSE(ds.collapsed_time);
+  EXPECT_FALSE(data::collapsedTimeWarning(ds.events).has_value());
+}
+
+TEST(Lias, ParsesItsTimeFormat) {
+  EXPECT_DOUBLE_EQ(*data::parseDateTime("1970-01-02 0:00:01.5"), 86401.5);
+  EXPECT_NEAR(*data::parseDateTime("2022-08-15 9:42:24.766"), 1660556544.766, 1e-6);
+  EXPECT_FALSE(data::parseDateTime("2022-13-15 9:42:24").has_value());
+  EXPECT_FALSE(data::parseDateTime("9:42:24.766").has_value());
+}
+
+TEST(Lias, ACorruptFileNamesItsLine) {
+  const auto dir = test::scratchDir();
+  std::filesystem::create_directories(dir / "Planar_Dataset" / "Dynamic");
+  std::filesystem::create_directories(dir / "Dynamic");
+  std::string readme = "| Tag 0 | 0 | 0 | 0 |\n| Tag 1 | 0 | 0.2 | 0 |\n| Tag 2 | 0.2 | 0 | 0 |\n";
+  for (int a = 0; a < 8; ++a)
+    readme += "| Anchor " + std::to_string(a) + " | " + std::to_string(a) + " | 1 | 1 |\n";
+  test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md", readme);
+  const auto uwb = test::writeText(dir / "Dynamic" / "UWB_dynamic_exp_x.csv",
+                                   "2022-08-15 9:42:24.766,1,2\nnot a time,1\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importLias(uwb, (dir / "out").string()); },
+      {"UWB_dynamic_exp_x.csv:2", "expected a time"});
+  // Without the README's tables: an error naming the README.
+  test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md", "# nothing here\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importLias(uwb, (dir / "out").string()); }, {"README.md", "3 tags and 8 anchors"});
+}
+
+// The shared recordings: biases calibrated on the three static runs at known poses, applied to
+// the fast dynamic run. Measured: 4.4 cm position RMSE and 6.6 deg heading RMSE (the heading
+// misses the 3 deg goal: see the README's multi-tag section). The thresholds guard those.
+TEST(Lias, StaticCalibrationCarriesToTheFastDynamicRun) {
+  const auto root = test::sharedData("lias_cuhksz_planar_uwb");
+  UWBLOC_REQUIRE_SHARED_DATA(root);
+  const auto dir = test::scratchDir();
+  std::vector<data::Dataset> statics;
+  for (int p = 1; p <= 3; ++p) {
+    const auto out = dir / ("pos" + std::to_string(p));
+    const auto s = data::importLias(
+        (root / "Static" / ("UWB_static_exp_8_14_pos" + std::to_string(p) + "_deg_0.csv"))
+            .string(),
+        out.string());
+    EXPECT_GT(s.skipped.at("uwb_row_short"), 0);  // rows short of an anchor are counted
+    statics.push_back(data::loadDataset(s.manifest, ""));
+  }
+  std::vector<const data::Dataset*> in;
+  for (const auto& d : statics) in.push_back(&d);
+  const auto cal = eval::calibrateRanges(in, {});
+  ASSERT_EQ(cal.biases.size(), 24u);
+  data::writeFileAtomic((dir / "bias.csv").string(), data::formatBiasCsv(cal.biases));
+
+  data::LiasImportParams params;
+  params.bias_csv = (dir / "bias.csv").string();
+  const auto s = data::importLias((root / "Dynamic" / "UWB_dynamic_exp_fast.csv").string(),
+                                  (dir / "fast").string(), params);
+  bool chosen = false;
+  for (const auto& n : s.notes)
+    chosen |= n.find("Chosen: heading +1 x the motion capture's yaw") != std::string::npos &&
+              n.find("lever arm y taken as given") != std::string::npos;
+  EXPECT_TRUE(chosen);
+  const data::Dataset fast = data::loadDataset(s.manifest, "");
+  EXPECT_EQ(fast.counts.at("ranges_bias_corrected"), s.ranges);
+  const auto summary = eval::evaluateMethod(fast, "uwb-multitag", 1, 1);
+  std::printf("[ LIAS     ] fast run, static calibration: rmse_2d %.4f m, median %.4f, p95 %.4f; "
+              "yaw rmse %.2f deg, median %.2f, p95 %.2f\n",
+              summary.metrics.rmse_2d, summary.metrics.median_2d, summary.metrics.p95_2d,
+              summary.metrics.rmse_yaw_deg, summary.metrics.median_yaw_deg,
+              summary.metrics.p95_yaw_deg);
+  EXPECT_LT(summary.metrics.rmse_2d, 0.05);
+  EXPECT_LT(summary.metrics.rmse_yaw_deg, 7.5);
+}
+
+}  // namespace
+}  // namespace uwbloc
