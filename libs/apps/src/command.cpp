@@ -22,6 +22,7 @@ std::vector<std::unique_ptr<Command>> allCommands() {
   out.push_back(std::make_unique<RunMethodsCommand>(false));
   out.push_back(std::make_unique<RunMethodsCommand>(true));
   out.push_back(std::make_unique<ImportCommand>());
+  out.push_back(std::make_unique<ExportCommand>());
   out.push_back(std::make_unique<SimulateCommand>());
   out.push_back(std::make_unique<AugmentCommand>());
   out.push_back(std::make_unique<BenchmarkCommand>());

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "uwbloc/apps/command.hpp"
+#include "uwbloc/dataset/csv_import.hpp"
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/lias_import.hpp"
 #include "uwbloc/dataset/simulator.hpp"
@@ -57,6 +58,19 @@ class ImportCommand : public Command {
   data::HanyangImportParams hanyang_;
   data::LiasImportParams lias_;
   std::optional<double> tag_height_;
+  data::CsvImportRequest csv_;
+  std::vector<std::string> tags_;
+  std::string scan_pose_;
+};
+
+/// `export -d MANIFEST -o DIR`: a dataset as plain CSV files (the inverse of `import csv`).
+class ExportCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::string dataset_, out_, data_dir_;
 };
 
 /// `simulate --scenario S --out DIR`.

@@ -1,5 +1,7 @@
 // `uwbloc import`, `simulate` and `augment`: the commands that write datasets.
 #include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <sstream>
@@ -17,20 +19,46 @@
 
 namespace uwbloc::apps {
 
+namespace {
+
+// Comma-separated numbers of an option, or an InputError naming it.
+std::vector<double> splitNumbers(const std::string& text, const std::string& option) {
+  std::vector<double> out;
+  for (const auto& part : splitList(text)) {
+    char* end = nullptr;
+    const double v = std::strtod(part.c_str(), &end);
+    if (part.empty() || end != part.c_str() + part.size() || !std::isfinite(v))
+      throw data::InputError(option + ": '" + part + "' is not a number");
+    out.push_back(v);
+  }
+  return out;
+}
+
+void printSummary(const data::ImportSummary& s) {
+  std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors, " << s.scans
+            << " scans and " << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest
+            << "\n";
+  for (const auto& note : s.notes) std::cout << note << "\n";
+  for (const auto& [reason, count] : s.skipped)
+    std::cout << "Skipped " << count << " rows: " << reason << "\n";
+}
+
+}  // namespace
+
 void ImportCommand::declare(CLI::App& parser) {
   subcommand_ = parser.add_subcommand(
       "import", "Convert a public dataset into a rawlog, a ground-truth file and a manifest");
   auto* cmd = subcommand_;
   cmd->add_option("format", format_,
                   "source format: hanyang (one dynamic run folder), carmen (a .log or .log.gz), "
-                  "plaza (the Plaza folder) or lias (one UWB_*.csv file of the LIAS-CUHKSZ "
-                  "planar set, dynamic or static)")
+                  "plaza (the Plaza folder), lias (one UWB_*.csv file of the LIAS-CUHKSZ "
+                  "planar set, dynamic or static) or csv (your own CSV files: --ranges, "
+                  "--anchors, ...)")
       ->required()
-      ->check(CLI::IsMember({"hanyang", "carmen", "plaza", "lias"}));
+      ->check(CLI::IsMember({"hanyang", "carmen", "plaza", "lias", "csv"}));
   cmd->add_option("source", source_,
-                  "source folder (as given, or relative to the data directory), e.g. "
-                  "hanyang_outdoor_uwb/LOS_TrajA_Case1")
-      ->required();
+                  "source folder or file (as given, or relative to the data directory), e.g. "
+                  "hanyang_outdoor_uwb/LOS_TrajA_Case1; csv: the ranges file (or --ranges)");
   cmd->add_option("--out,-o", out_, "output folder")->required();
   cmd->add_option("--data-dir", data_dir_, "folder of public datasets");
   cmd->add_option("--tag-height", tag_height_,
@@ -38,14 +66,60 @@ void ImportCommand::declare(CLI::App& parser) {
                   "median z)");
   cmd->add_option("--bias", lias_.bias_csv,
                   "lias: a per-link bias CSV (from 'uwbloc calibrate') to name in the manifest");
+  cmd->add_option("--ranges", csv_.ranges,
+                  "csv: ranges 't,anchor_id,range[,tag_id][,rx_power,fp_power]' (a header row of "
+                  "these names may place them)");
+  cmd->add_option("--anchors", csv_.anchors, "csv: anchors 'id,x,y,z'");
+  cmd->add_option("--odometry", csv_.odometry,
+                  "csv: odometry 't,dx,dy,dtheta' (increments), 't,x,y,theta' (poses) or "
+                  "'t,v,omega' (velocities)");
+  cmd->add_option("--odometry-kind", csv_.odometry_kind,
+                  "csv: increments, poses or velocities; auto: from the header, the column "
+                  "count, or dead reckoning against --reference")
+      ->check(CLI::IsMember({"auto", "increments", "poses", "velocities"}))
+      ->capture_default_str();
+  cmd->add_option("--imu", csv_.imu, "csv: IMU 't,gx,gy,gz,ax,ay,az' [rad/s, m/s^2]");
+  cmd->add_option("--reference", csv_.reference,
+                  "csv: reference poses, TUM or 't,x,y[,theta]' (without theta no heading is "
+                  "scored)");
+  cmd->add_option("--scans", csv_.scans,
+                  "csv: LiDAR scans, one a row: 't,angle_min,angle_increment,r0,r1,...'");
+  cmd->add_option("--tag", tags_,
+                  "csv: a tag on the robot 'id,x,y,z' [m] (repeat for several tags; default: tag "
+                  "0 at the origin, at --tag-height)");
+  cmd->add_option("--scan-pose", scan_pose_, "csv: the scanner on the robot 'x,y,yaw[,height]'");
+  cmd->add_option("--scan-max-range", csv_.scan_max_range,
+                  "csv: the scanner's maximum range [m] (default: the longest range in the file)");
+  cmd->add_option("--map", csv_.map, "csv: an occupancy map file for the methods that need one");
+  cmd->add_option("--name", csv_.name, "csv: dataset name (default: the output folder's)");
   cmd->add_option("--readme", lias_.readme,
                   "lias: the README with the anchor and tag coordinates (default: "
                   "Planar_Dataset/<Dynamic|Static>/README.md above the file)");
 }
 
 int ImportCommand::run() {
-  const std::string src = data::resolveInputPath(source_, data::resolveDataDir(data_dir_));
   data::ImportSummary s;
+  if (format_ == "csv") {
+    if (csv_.ranges.empty()) csv_.ranges = source_;
+    for (const auto& t : tags_) {
+      const auto v = splitNumbers(t, "--tag");
+      if (v.size() != 4) throw data::InputError("--tag: expected 'id,x,y,z', got '" + t + "'");
+      csv_.tags[static_cast<int>(v[0])] = Eigen::Vector3d(v[1], v[2], v[3]);
+    }
+    if (!scan_pose_.empty()) {
+      const auto v = splitNumbers(scan_pose_, "--scan-pose");
+      if (v.size() != 3 && v.size() != 4)
+        throw data::InputError("--scan-pose: expected 'x,y,yaw[,height]', got '" + scan_pose_ + "'");
+      csv_.scan_pose = Eigen::Vector3d(v[0], v[1], v[2]);
+      if (v.size() == 4) csv_.scan_height = v[3];
+    }
+    csv_.tag_height = tag_height_;
+    s = data::importCsv(csv_, out_);
+    printSummary(s);
+    return kSuccess;
+  }
+  if (source_.empty()) throw data::InputError("import " + format_ + ": the source is required");
+  const std::string src = data::resolveInputPath(source_, data::resolveDataDir(data_dir_));
   if (tag_height_) {
     hanyang_.tag_height = *tag_height_;
     lias_.tag_height = *tag_height_;
@@ -58,12 +132,26 @@ int ImportCommand::run() {
     s = data::importPlaza(src, out_);
   else
     s = data::importCarmen(src, out_);
-  std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors, " << s.scans
-            << " scans and " << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest
-            << "\n";
-  for (const auto& note : s.notes) std::cout << note << "\n";
-  for (const auto& [reason, count] : s.skipped)
-    std::cout << "Skipped " << count << " rows: " << reason << "\n";
+  printSummary(s);
+  return kSuccess;
+}
+
+void ExportCommand::declare(CLI::App& parser) {
+  subcommand_ = parser.add_subcommand(
+      "export",
+      "Write a dataset as plain CSV files (ranges, anchors, odometry increments, IMU, reference, "
+      "scans) and print the 'uwbloc import csv' line that reads them back");
+  subcommand_->add_option("--dataset,-d", dataset_, "dataset manifest (INI)")->required();
+  subcommand_->add_option("--out,-o", out_, "output folder")->required();
+  subcommand_->add_option("--data-dir", data_dir_, "folder of public datasets");
+}
+
+int ExportCommand::run() {
+  const std::string data_dir = data::resolveDataDir(data_dir_);
+  const auto ds = data::loadDataset(data::resolveInputPath(dataset_, data_dir), data_dir);
+  const std::string args = data::exportCsv(ds, out_);
+  std::cout << "Exported " << ds.name << " to " << out_ << "\nRead it back with:\n  uwbloc import csv "
+            << args << " -o DIR\n";
   return kSuccess;
 }
 

@@ -1,0 +1,53 @@
+// A recording from plain CSV files, and a dataset back to them.
+//
+// Files (comma- or blank-separated; '#' comments; an optional header row of column names):
+//   ranges     t,anchor_id,range[,tag_id][,rx_power,fp_power]   (3, 4, 5 or 6 columns; with a
+//              header the names t/time, anchor_id/anchor, range/distance, tag_id/tag,
+//              rx_power[_dbm], fp_power[_dbm] place them)
+//   anchors    id,x,y,z
+//   odometry   t,dx,dy,dtheta   increments in the robot frame at the start of the motion, or
+//              t,x,y,theta      poses (increments taken between consecutive rows), or
+//              t,v,omega        velocities (integrated over each row's interval)
+//              The kind is named by the header (dx / x / v) or by --odometry-kind; with neither,
+//              four columns are poses when the rows' values drift far beyond their row-to-row
+//              steps, increments otherwise (the decision is reported).
+//   imu        t,gx,gy,gz,ax,ay,az  [rad/s, m/s^2]; the planar part (gz, ax, ay) is kept
+//   reference  TUM (t x y z qx qy qz qw), or t,x,y[,theta] (without theta the heading is not
+//              scored: reference_heading = false)
+//   scans      t,angle_min,angle_increment,r0,r1,...  one scan a row [s, rad, rad, m]; a range
+//              <= 0 or not finite is a ray that did not return
+// Malformed rows are errors naming the file and line; rows with a bad timestamp or a
+// non-finite value are skipped and counted.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+
+#include "uwbloc/dataset/dataset.hpp"
+#include "uwbloc/dataset/manifest.hpp"
+
+namespace uwbloc::data {
+
+struct CsvImportRequest {
+  std::string ranges, anchors, odometry, imu, reference, scans;
+  std::string map;  ///< an occupancy map file (a .gridmap.gz or an image) the manifest names
+  std::string odometry_kind = "auto";  ///< auto | increments | poses | velocities
+  std::map<int, Eigen::Vector3d> tags;  ///< tag id -> position on the robot (x y z) [m]
+  std::optional<double> tag_height;     ///< tag 0's height when `tags` is empty [m]
+  Eigen::Vector3d scan_pose = Eigen::Vector3d::Zero();  ///< scanner on the robot (x, y, yaw)
+  double scan_height = 0.0;                             ///< [m]
+  std::optional<double> scan_max_range;  ///< default: the longest range in the file [m]
+  std::string name;                      ///< dataset name (default: the output folder's)
+};
+
+/// Writes rawlog, anchors.csv, ground_truth.tum, range_features.csv (when the ranges carry
+/// powers) and dataset.ini into `out_dir`.
+ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_dir);
+
+/// Writes `ds` as the CSV files above (ranges.csv, anchors.csv, odometry.csv as increments,
+/// imu.csv, reference.tum or reference.csv, scans.csv: each only when the dataset has that
+/// stream). Returns the 'uwbloc import csv' arguments that read them back.
+std::string exportCsv(const Dataset& ds, const std::string& out_dir);
+
+}  // namespace uwbloc::data

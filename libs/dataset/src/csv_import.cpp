@@ -1,0 +1,498 @@
+#include "uwbloc/dataset/csv_import.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <set>
+
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/text_io.hpp"
+
+namespace fs = std::filesystem;
+
+namespace uwbloc::data {
+
+namespace {
+
+bool isNumber(const std::string& s) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  std::strtod(s.c_str(), &end);
+  return end == s.c_str() + s.size();
+}
+
+std::string lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Column positions from a header row: the first of `names` found, or -1.
+int column(const std::vector<std::string>& header, std::initializer_list<const char*> names) {
+  for (const char* n : names)
+    for (size_t i = 0; i < header.size(); ++i)
+      if (lower(header[i]) == n) return static_cast<int>(i);
+  return -1;
+}
+
+// Rows of a CSV file, its header (when the first row is not numeric) apart.
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::pair<int, std::vector<std::string>>> rows;  ///< (line, fields)
+};
+
+Table readTable(const std::string& path) {
+  Table t;
+  forEachRow(path, [&](int line, const std::vector<std::string>& f) {
+    if (t.rows.empty() && t.header.empty() && !f.empty() && !isNumber(f[0])) {
+      t.header = f;
+      return;
+    }
+    t.rows.emplace_back(line, f);
+  });
+  if (t.rows.empty()) throwInputError(path, 0, "no data rows");
+  return t;
+}
+
+// The time of a row, or nothing (counted) when it cannot be used.
+std::optional<double> rowTime(const std::string& text, const std::string& path, int line,
+                              const std::string& what, ImportSummary& s) {
+  const double t = parseNumber(text, path, line, "t");
+  if (const char* problem = timestampProblem(t)) {
+    ++s.skipped[what + "_" + problem];
+    return std::nullopt;
+  }
+  return t;
+}
+
+long readRanges(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {
+  const std::string& path = req.ranges;
+  const Table table = readTable(path);
+  int ct = 0, ca = 1, cr = 2, ctag = -1, crx = -1, cfp = -1;
+  size_t width = table.rows.front().second.size();
+  if (!table.header.empty()) {
+    ct = column(table.header, {"t", "time", "timestamp"});
+    ca = column(table.header, {"anchor_id", "anchor"});
+    cr = column(table.header, {"range", "distance"});
+    ctag = column(table.header, {"tag_id", "tag"});
+    crx = column(table.header, {"rx_power", "rx_power_dbm"});
+    cfp = column(table.header, {"fp_power", "fp_power_dbm"});
+    if (ct < 0 || ca < 0 || cr < 0)
+      throwInputError(path, 1, "the header must name the columns t, anchor_id and range");
+    width = table.header.size();
+  } else if (width == 4) {
+    ctag = 3;
+  } else if (width == 5) {
+    crx = 3, cfp = 4;
+  } else if (width == 6) {
+    ctag = 3, crx = 4, cfp = 5;
+  } else if (width != 3) {
+    throwInputError(path, table.rows.front().first,
+                    "expected 't,anchor_id,range[,tag_id][,rx_power,fp_power]', got " +
+                        std::to_string(width) + " fields");
+  }
+  long n = 0;
+  for (const auto& [line, f] : table.rows) {
+    if (f.size() != width)
+      throwInputError(path, line,
+                      "expected " + std::to_string(width) + " fields like the first row, got " +
+                          std::to_string(f.size()));
+    const auto t = rowTime(f[static_cast<size_t>(ct)], path, line, "range", s);
+    if (!t) continue;
+    uwb::Range r;
+    r.t = *t;
+    r.anchor_id = parseId(f[static_cast<size_t>(ca)], path, line, "anchor_id");
+    r.range = parseNumber(f[static_cast<size_t>(cr)], path, line, "range");
+    if (!std::isfinite(r.range)) {
+      ++s.skipped["range_non_finite"];
+      continue;
+    }
+    if (ctag >= 0) r.tag_id = parseId(f[static_cast<size_t>(ctag)], path, line, "tag_id");
+    if (crx >= 0 && cfp >= 0 && !f[static_cast<size_t>(crx)].empty() &&
+        !f[static_cast<size_t>(cfp)].empty()) {
+      r.rx_power_dbm = parseNumber(f[static_cast<size_t>(crx)], path, line, "rx_power");
+      r.fp_power_dbm = parseNumber(f[static_cast<size_t>(cfp)], path, line, "fp_power");
+    }
+    if (const auto it = req.tags.find(r.tag_id); it != req.tags.end()) {
+      r.tag_on_robot = it->second;
+      r.on_robot = true;
+    } else {
+      r.tag_on_robot.z() = req.tag_height.value_or(0.0);
+      r.on_robot = r.tag_id == 0;
+    }
+    events.emplace_back(r);
+    ++n;
+  }
+  return n;
+}
+
+struct OdoRow {
+  double t;
+  Eigen::Vector3d v;
+};
+
+// The increments of `rows` read as `kind`, each stamped with the end of its motion.
+std::vector<loc::OdometryIncrement> odometryIncrements(const std::vector<OdoRow>& rows,
+                                                       const std::string& kind) {
+  std::vector<loc::OdometryIncrement> out;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    loc::OdometryIncrement o;
+    o.t = rows[k].t;
+    if (kind == "increments") {
+      o.delta = rows[k].v;
+    } else if (k == 0) {
+      continue;  // poses and velocities: the first row starts the motion
+    } else if (kind == "poses") {
+      o.delta = relativePose(rows[k - 1].v, rows[k].v);
+    } else {
+      const double dt = rows[k].t - rows[k - 1].t, v = rows[k - 1].v.x(), w = rows[k - 1].v.y();
+      const double a = w * dt;
+      o.delta = std::abs(a) < 1e-9
+                    ? Eigen::Vector3d(v * dt, 0.0, a)
+                    : Eigen::Vector3d(v / w * std::sin(a), v / w * (1.0 - std::cos(a)), a);
+    }
+    out.push_back(o);
+  }
+  return out;
+}
+
+// Dead reckoning of `inc` from the reference's first pose against the reference: RMS position
+// error over the first 30 m travelled.
+double deadReckoningError(const std::vector<loc::OdometryIncrement>& inc,
+                          const std::vector<TimedPose>& ref) {
+  Eigen::Vector3d pose = ref.front().pose;
+  double travelled = 0.0, sum = 0.0;
+  long n = 0;
+  for (const auto& o : inc) {
+    if (o.t <= ref.front().t) continue;
+    pose = composePose(pose, o.delta);
+    travelled += o.delta.head<2>().norm();
+    const auto truth = interpolateGroundTruth(ref, o.t, 5.0);
+    if (!truth) continue;
+    sum += (truth->head<2>() - pose.head<2>()).squaredNorm();
+    ++n;
+    if (travelled > 30.0) break;
+  }
+  return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : INFINITY;
+}
+
+void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& reference,
+                  std::vector<loc::Event>& events, ImportSummary& s) {
+  const std::string& path = req.odometry;
+  const Table table = readTable(path);
+  std::string kind = req.odometry_kind;
+  const size_t width = table.header.empty() ? table.rows.front().second.size()
+                                            : table.header.size();
+  if (kind == "auto" && !table.header.empty()) {
+    if (column(table.header, {"dx"}) >= 0) kind = "increments";
+    else if (column(table.header, {"v"}) >= 0) kind = "velocities";
+    else if (column(table.header, {"x"}) >= 0) kind = "poses";
+  }
+  if (kind == "auto" && width == 3) kind = "velocities";
+  const size_t need = kind == "velocities" ? 3 : 4;
+  if (kind != "auto" && width != need)
+    throwInputError(path, table.rows.front().first,
+                    "odometry as " + kind + " has " + std::to_string(need) + " columns, got " +
+                        std::to_string(width));
+  if (width != 3 && width != 4)
+    throwInputError(path, table.rows.front().first,
+                    "expected 't,dx,dy,dtheta', 't,x,y,theta' or 't,v,omega'");
+  std::vector<OdoRow> rows;
+  for (const auto& [line, f] : table.rows) {
+    if (f.size() != width)
+      throwInputError(path, line, "expected " + std::to_string(width) + " fields");
+    const auto t = rowTime(f[0], path, line, "odometry", s);
+    if (!t) continue;
+    OdoRow r{*t, Eigen::Vector3d::Zero()};
+    for (size_t i = 1; i < width; ++i)
+      r.v(static_cast<long>(i - 1)) = parseNumber(f[i], path, line, "column " + std::to_string(i + 1));
+    if (!r.v.allFinite()) {
+      ++s.skipped["odometry_non_finite"];
+      continue;
+    }
+    if (!rows.empty() && r.t <= rows.back().t) {
+      ++s.skipped["odometry_time_not_increasing"];
+      continue;
+    }
+    rows.push_back(r);
+  }
+  if (kind == "auto") {
+    if (reference.empty())
+      throwInputError(path, 0,
+                      "four columns without a header: name them (t,dx,dy,dtheta or t,x,y,theta) "
+                      "or give --odometry-kind increments|poses (or a --reference to decide by)");
+    const double e_inc = deadReckoningError(odometryIncrements(rows, "increments"), reference);
+    const double e_pose = deadReckoningError(odometryIncrements(rows, "poses"), reference);
+    kind = e_pose < e_inc ? "poses" : "increments";
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "Odometry read as %s: dead reckoning follows the reference to %.2f m RMS over "
+                  "the first 30 m (as %s: %.2f m)",
+                  kind.c_str(), std::min(e_inc, e_pose),
+                  kind == "poses" ? "increments" : "poses", std::max(e_inc, e_pose));
+    s.notes.emplace_back(buf);
+  }
+  for (const auto& o : odometryIncrements(rows, kind)) events.emplace_back(o);
+}
+
+void readImu(const std::string& path, std::vector<loc::Event>& events, ImportSummary& s) {
+  const Table table = readTable(path);
+  for (const auto& [line, f] : table.rows) {
+    if (f.size() != 7) throwInputError(path, line, "expected 't,gx,gy,gz,ax,ay,az'");
+    const auto t = rowTime(f[0], path, line, "imu", s);
+    if (!t) continue;
+    loc::ImuSample m;
+    m.t = *t;
+    m.gyro_z = parseNumber(f[3], path, line, "gz");
+    m.accel << parseNumber(f[4], path, line, "ax"), parseNumber(f[5], path, line, "ay");
+    if (!m.accel.allFinite() || !std::isfinite(m.gyro_z)) {
+      ++s.skipped["imu_non_finite"];
+      continue;
+    }
+    events.emplace_back(m);
+  }
+}
+
+// TUM, t x y theta, or t x y (no heading).
+std::vector<TimedPose> readReference(const std::string& path, bool* heading) {
+  const Table table = readTable(path);
+  const size_t width = table.rows.front().second.size();
+  *heading = width != 3;
+  if (width == 8 || width == 4) {
+    // The readers of the manifest's formats, header row apart.
+    std::vector<TimedPose> out;
+    for (const auto& [line, f] : table.rows) {
+      if (f.size() != width) throwInputError(path, line, "expected " + std::to_string(width) + " fields");
+      TimedPose p;
+      p.t = parseNumber(f[0], path, line, "t");
+      double yaw = 0.0;
+      if (width == 4) {
+        yaw = parseNumber(f[3], path, line, "theta");
+      } else {
+        const double qx = parseNumber(f[4], path, line, "qx"), qy = parseNumber(f[5], path, line, "qy"),
+                     qz = parseNumber(f[6], path, line, "qz"), qw = parseNumber(f[7], path, line, "qw");
+        yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
+      }
+      p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"), yaw;
+      if (!p.pose.allFinite() || timestampProblem(p.t))
+        throwInputError(path, line, "non-finite value or unusable time");
+      if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
+      out.push_back(p);
+    }
+    return out;
+  }
+  if (width != 3)
+    throwInputError(path, table.rows.front().first,
+                    "expected TUM (8 fields), 't,x,y,theta' or 't,x,y', got " +
+                        std::to_string(width) + " fields");
+  std::vector<TimedPose> out;
+  for (const auto& [line, f] : table.rows) {
+    if (f.size() != 3) throwInputError(path, line, "expected 't,x,y'");
+    TimedPose p;
+    p.t = parseNumber(f[0], path, line, "t");
+    p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"), 0.0;
+    if (!p.pose.allFinite() || timestampProblem(p.t))
+      throwInputError(path, line, "non-finite value or unusable time");
+    if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
+    out.push_back(p);
+  }
+  return out;
+}
+
+long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {
+  const std::string& path = req.scans;
+  const Table table = readTable(path);
+  std::vector<loc::LaserScan> scans;
+  float longest = 0.0f;
+  for (const auto& [line, f] : table.rows) {
+    if (f.size() < 4) throwInputError(path, line, "expected 't,angle_min,angle_increment,r0,...'");
+    const auto t = rowTime(f[0], path, line, "scan", s);
+    if (!t) continue;
+    loc::LaserScan scan;
+    scan.t = *t;
+    scan.sensor_pose = req.scan_pose;
+    scan.sensor_height = req.scan_height;
+    scan.angle_min = static_cast<float>(parseNumber(f[1], path, line, "angle_min"));
+    scan.angle_increment = static_cast<float>(parseNumber(f[2], path, line, "angle_increment"));
+    if (!std::isfinite(scan.angle_min) || !std::isfinite(scan.angle_increment))
+      throwInputError(path, line, "angle_min and angle_increment must be finite");
+    for (size_t i = 3; i < f.size(); ++i) {
+      const double r = f[i].empty() ? NAN : parseNumber(f[i], path, line, "r" + std::to_string(i - 3));
+      const bool ok = std::isfinite(r) && r > 0.0;
+      scan.ranges.push_back(ok ? static_cast<float>(r) : 0.0f);
+      scan.valid.push_back(ok ? 1 : 0);
+      if (ok) longest = std::max(longest, static_cast<float>(r));
+    }
+    // A rawlog scan is symmetric about the sensor's axis: an asymmetric one turns the sensor by
+    // its centre angle instead (the same rays).
+    const double centre =
+        scan.angle_min + 0.5 * static_cast<double>(scan.ranges.size() - 1) * scan.angle_increment;
+    if (std::abs(centre) > 1e-6) {
+      scan.sensor_pose.z() = wrapAngle(scan.sensor_pose.z() + centre);
+      scan.angle_min = static_cast<float>(scan.angle_min - centre);
+    }
+    scans.push_back(std::move(scan));
+  }
+  const float max_range =
+      req.scan_max_range ? static_cast<float>(*req.scan_max_range) : longest;
+  if (!req.scan_max_range && !scans.empty()) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "Scan maximum range taken as the longest range in the file: %.2f m "
+                  "(--scan-max-range sets it)",
+                  max_range);
+    s.notes.emplace_back(buf);
+  }
+  for (auto& scan : scans) {
+    scan.max_range = max_range;
+    events.emplace_back(std::move(scan));
+  }
+  return static_cast<long>(scans.size());
+}
+
+}  // namespace
+
+ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir) {
+  if (req.ranges.empty()) throw InputError("import csv: --ranges is required");
+  if (req.anchors.empty()) throw InputError("import csv: --anchors is required");
+  ImportSummary s;
+  std::vector<loc::Event> events;
+  const auto anchors = loadAnchorsCsv(req.anchors);
+  std::vector<TimedPose> reference;
+  bool heading = true;
+  if (!req.reference.empty()) reference = readReference(req.reference, &heading);
+  s.ranges = readRanges(req, events, s);
+  if (!req.odometry.empty()) readOdometry(req, reference, events, s);
+  if (!req.imu.empty()) readImu(req.imu, events, s);
+  if (!req.scans.empty()) s.scans = readScans(req, events, s);
+  loc::sortByTime(events);
+  std::set<int> unknown;
+  for (const auto& e : events)
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && !uwb::findAnchor(anchors, r->anchor_id))
+      unknown.insert(r->anchor_id);
+  if (!unknown.empty()) {
+    std::string ids;
+    for (int id : unknown) ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+    s.notes.push_back("WARNING: ranges to anchors missing from " + req.anchors + ": " + ids +
+                      " (the methods reject them as unknown_anchor)");
+  }
+
+  ensureDirectory(out_dir);
+  const fs::path out(out_dir);
+  writeRawlog((out / "csv.rawlog").string(), events);
+  writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
+  ManifestDraft m;
+  m.comments = {"Imported by 'uwbloc import csv' from " + fs::absolute(req.ranges).string()};
+  m.name = req.name.empty() ? fs::absolute(out).filename().string() : req.name;
+  m.rawlog = "csv.rawlog";
+  m.anchors_csv = "anchors.csv";
+  if (!req.map.empty()) {
+    requireRegularFile(req.map);
+    m.map = fs::absolute(req.map).string();
+  }
+  if (!reference.empty()) {
+    writeFileAtomic((out / "ground_truth.tum").string(), formatTum(reference));
+    m.ground_truth = "ground_truth.tum";
+    m.ground_truth_format = GroundTruthFormat::kTum;
+    m.reference_heading = heading;
+    s.ground_truth_rows = static_cast<long>(reference.size());
+    if (!heading) s.notes.emplace_back("The reference has no heading: heading is not scored");
+  }
+  bool powers = false;
+  for (const auto& e : events)
+    if (const auto* r = std::get_if<uwb::Range>(&e)) powers |= r->rx_power_dbm.has_value();
+  if (powers) {
+    writeFileAtomic((out / "range_features.csv").string(), formatRangeFeatures(events));
+    m.range_features = "range_features.csv";
+  }
+  if (!req.tags.empty())
+    m.tags = req.tags;
+  else if (req.tag_height)
+    m.tag_height = *req.tag_height;
+  s.manifest = writeManifest(out_dir, m);
+  s.anchors = static_cast<long>(anchors.size());
+  return s;
+}
+
+std::string exportCsv(const Dataset& ds, const std::string& out_dir) {
+  ensureDirectory(out_dir);
+  const fs::path out(out_dir);
+  std::string ranges = "t,anchor_id,range,tag_id,rx_power,fp_power\n", odometry, imu, scans;
+  std::map<int, Eigen::Vector3d> tags;
+  const loc::LaserScan* first_scan = nullptr;
+  char buf[256];
+  for (const auto& e : ds.events) {
+    if (const auto* r = std::get_if<uwb::Range>(&e)) {
+      std::snprintf(buf, sizeof buf, "%.7f,%d,%.9g,%d,", r->t, r->anchor_id, r->range, r->tag_id);
+      ranges += buf;
+      if (r->rx_power_dbm && r->fp_power_dbm) {
+        std::snprintf(buf, sizeof buf, "%.9g,%.9g", *r->rx_power_dbm, *r->fp_power_dbm);
+        ranges += buf;
+      } else {
+        ranges += ",";
+      }
+      ranges += "\n";
+      if (r->on_robot) tags.try_emplace(r->tag_id, r->tag_on_robot);
+    } else if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) {
+      std::snprintf(buf, sizeof buf, "%.7f,%.17g,%.17g,%.17g\n", o->t, o->delta.x(),
+                    o->delta.y(), o->delta.z());
+      odometry += buf;
+    } else if (const auto* m = std::get_if<loc::ImuSample>(&e)) {
+      std::snprintf(buf, sizeof buf, "%.7f,0,0,%.17g,%.17g,%.17g,0\n", m->t, m->gyro_z,
+                    m->accel.x(), m->accel.y());
+      imu += buf;
+    } else if (const auto* s = std::get_if<loc::LaserScan>(&e)) {
+      if (!first_scan) first_scan = s;
+      std::snprintf(buf, sizeof buf, "%.7f,%.9g,%.9g", s->t, s->angle_min, s->angle_increment);
+      scans += buf;
+      for (size_t i = 0; i < s->ranges.size(); ++i) {
+        std::snprintf(buf, sizeof buf, ",%.9g", s->valid[i] ? s->ranges[i] : 0.0f);
+        scans += buf;
+      }
+      scans += "\n";
+    }
+  }
+  std::string args = "--ranges " + (out / "ranges.csv").string() + " --anchors " +
+                     (out / "anchors.csv").string();
+  writeFileAtomic((out / "ranges.csv").string(), ranges);
+  writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(ds.anchors));
+  if (!odometry.empty()) {
+    writeFileAtomic((out / "odometry.csv").string(), "t,dx,dy,dtheta\n" + odometry);
+    args += " --odometry " + (out / "odometry.csv").string();
+  }
+  if (!imu.empty()) {
+    writeFileAtomic((out / "imu.csv").string(), "t,gx,gy,gz,ax,ay,az\n" + imu);
+    args += " --imu " + (out / "imu.csv").string();
+  }
+  if (!ds.ground_truth.empty()) {
+    if (ds.manifest.reference_heading) {
+      writeFileAtomic((out / "reference.tum").string(), formatTum(ds.ground_truth));
+      args += " --reference " + (out / "reference.tum").string();
+    } else {
+      std::string ref;
+      for (const auto& p : ds.ground_truth) {
+        std::snprintf(buf, sizeof buf, "%.6f,%.6f,%.6f\n", p.t, p.pose.x(), p.pose.y());
+        ref += buf;
+      }
+      writeFileAtomic((out / "reference.csv").string(), ref);
+      args += " --reference " + (out / "reference.csv").string();
+    }
+  }
+  if (!ds.manifest.map.empty()) args += " --map " + fs::absolute(ds.manifest.map).string();
+  if (first_scan) {
+    writeFileAtomic((out / "scans.csv").string(), scans);
+    std::snprintf(buf, sizeof buf, " --scan-pose %.9g,%.9g,%.9g,%.9g --scan-max-range %.9g",
+                  first_scan->sensor_pose.x(), first_scan->sensor_pose.y(),
+                  first_scan->sensor_pose.z(), first_scan->sensor_height, first_scan->max_range);
+    args += " --scans " + (out / "scans.csv").string() + buf;
+  }
+  for (const auto& [id, p] : tags) {
+    std::snprintf(buf, sizeof buf, " --tag %d,%.9g,%.9g,%.9g", id, p.x(), p.y(), p.z());
+    args += buf;
+  }
+  return args;
+}
+
+}  // namespace uwbloc::data

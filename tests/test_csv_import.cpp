@@ -1,0 +1,218 @@
+// Plain-CSV recordings in and out: a simulated recording exported and imported again scores
+// identically; the odometry kinds; headers; a reference without heading; asymmetric scans;
+// malformed rows named by file and line.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "simulated_scenario.hpp"
+#include "test_helpers.hpp"
+#include "uwbloc/dataset/csv_import.hpp"
+#include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/evaluation/metrics.hpp"
+#include "uwbloc/evaluation/runner.hpp"
+
+using namespace uwbloc;
+
+namespace {
+
+// Splits the exporter's argument line back into a request.
+data::CsvImportRequest requestFrom(const std::string& args) {
+  data::CsvImportRequest r;
+  std::istringstream in(args);
+  std::string key, value;
+  while (in >> key >> value) {
+    auto numbers = [&] {
+      std::vector<double> v;
+      std::istringstream s(value);
+      for (std::string p; std::getline(s, p, ',');) v.push_back(std::stod(p));
+      return v;
+    };
+    if (key == "--ranges") r.ranges = value;
+    else if (key == "--anchors") r.anchors = value;
+    else if (key == "--odometry") r.odometry = value;
+    else if (key == "--imu") r.imu = value;
+    else if (key == "--reference") r.reference = value;
+    else if (key == "--scans") r.scans = value;
+    else if (key == "--map") r.map = value;
+    else if (key == "--scan-max-range") r.scan_max_range = std::stod(value);
+    else if (key == "--scan-pose") {
+      const auto v = numbers();
+      r.scan_pose = Eigen::Vector3d(v[0], v[1], v[2]);
+      r.scan_height = v[3];
+    } else if (key == "--tag") {
+      const auto v = numbers();
+      r.tags[static_cast<int>(v[0])] = Eigen::Vector3d(v[1], v[2], v[3]);
+    } else {
+      ADD_FAILURE() << "unknown argument " << key;
+    }
+  }
+  return r;
+}
+
+}  // namespace
+
+TEST(CsvImport, ARoundTripScoresIdentically) {
+  const auto dir = test::scratchDir();
+  const data::Dataset sim = test::simulatedScenario("pfibas_room", 2);
+  const std::string args = data::exportCsv(sim, (dir / "csv").string());
+  const auto s = data::importCsv(requestFrom(args), (dir / "imported").string());
+  const data::Dataset back = data::loadDataset(s.manifest, "");
+  ASSERT_EQ(back.events.size(), sim.events.size());
+  ASSERT_EQ(back.ground_truth.size(), sim.ground_truth.size());
+  // Each sensor: UWB (uwb-ekf), odometry (odom), IMU (uwb-ins), LiDAR and map (fused-pf).
+  for (const char* m : {"uwb-ekf", "odom", "uwb-ins", "fused-pf"}) {
+    const auto a = eval::evaluateMethod(sim, m, 1, 1);
+    const auto b = eval::evaluateMethod(back, m, 1, 1);
+    std::printf("[ CSV      ] %-9s rmse_2d %.6f m simulated, %.6f m after the round trip\n", m,
+                a.metrics.rmse_2d, b.metrics.rmse_2d);
+    EXPECT_EQ(a.metrics.steps, b.metrics.steps) << m;
+    EXPECT_NEAR(a.metrics.rmse_2d, b.metrics.rmse_2d, 1e-9) << m;
+    EXPECT_NEAR(a.metrics.max_2d, b.metrics.max_2d, 1e-9) << m;
+  }
+}
+
+TEST(CsvImport, ReadsEveryOdometryKind) {
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "a.csv", "1,0,0,1\n2,10,0,1\n3,0,10,1\n");
+  test::writeText(dir / "r.csv", "t,anchor,range\n10,1,5\n10.1,2,5\n");
+  // A robot driving a circle of radius 2 m at 0.5 m/s, sampled at 10 Hz, as the three kinds.
+  std::string poses = "t,x,y,theta\n", vel = "t,v,omega\n", inc = "t,dx,dy,dtheta\n",
+              ref = "", plain_poses;
+  const double v = 0.5, w = 0.25;
+  Eigen::Vector3d prev(0, 0, 0);
+  for (int k = 0; k <= 200; ++k) {
+    const double t = 10.0 + 0.1 * k, a = w * 0.1 * k;
+    const Eigen::Vector3d p(2.0 * std::sin(a), 2.0 * (1 - std::cos(a)), a);
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "%.3f,%.12f,%.12f,%.12f\n", t, p.x(), p.y(), p.z());
+    poses += buf;
+    plain_poses += buf;
+    ref += buf;
+    std::snprintf(buf, sizeof buf, "%.3f,%.3f,%.3f\n", t, v, w);
+    vel += buf;
+    const Eigen::Vector3d d = relativePose(prev, p);
+    if (k > 0) {
+      std::snprintf(buf, sizeof buf, "%.3f,%.12f,%.12f,%.12f\n", t, d.x(), d.y(), d.z());
+      inc += buf;
+    }
+    prev = p;
+  }
+  test::writeText(dir / "ref.csv", ref);
+  auto finalPose = [&](const std::string& file, const std::string& kind, bool with_ref) {
+    data::CsvImportRequest r;
+    r.ranges = (dir / "r.csv").string();
+    r.anchors = (dir / "a.csv").string();
+    r.odometry = (dir / file).string();
+    r.odometry_kind = kind;
+    if (with_ref) r.reference = (dir / "ref.csv").string();
+    const auto s = data::importCsv(r, (dir / ("out_" + file + kind)).string());
+    const auto ds = data::loadDataset(s.manifest, "");
+    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+    for (const auto& e : ds.events)
+      if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) pose = composePose(pose, o->delta);
+    return std::pair(pose, s);
+  };
+  const Eigen::Vector3d end(2.0 * std::sin(5.0), 2.0 * (1 - std::cos(5.0)), wrapAngle(5.0));
+  for (const auto& [file, text] : {std::pair{"poses.csv", poses}, std::pair{"vel.csv", vel},
+                                   std::pair{"inc.csv", inc}}) {
+    test::writeText(dir / file, text);
+    const auto [pose, s] = finalPose(file, "auto", false);
+    EXPECT_LT((pose.head<2>() - end.head<2>()).norm(), 1e-5) << file;
+    EXPECT_NEAR(wrapAngle(pose.z() - end.z()), 0.0, 1e-6) << file;
+  }
+  // No header: four columns need a kind, or a reference to decide by.
+  test::writeText(dir / "plain.csv", plain_poses);
+  test::expectErrorMentions<data::InputError>([&] { finalPose("plain.csv", "auto", false); },
+                                              {"plain.csv", "--odometry-kind"});
+  const auto [pose, s] = finalPose("plain.csv", "auto", true);
+  EXPECT_LT((pose.head<2>() - end.head<2>()).norm(), 1e-5);
+  bool noted = false;
+  for (const auto& n : s.notes) noted |= n.find("Odometry read as poses") != std::string::npos;
+  EXPECT_TRUE(noted);
+}
+
+TEST(CsvImport, AReferenceWithoutHeadingIsNotScoredForHeading) {
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "a.csv", "1,0,0,1\n2,8,0,1\n3,0,8,1\n");
+  std::string ranges = "t,anchor_id,range,tag_id,rx_power,fp_power\n", ref;
+  for (int k = 0; k < 100; ++k) {
+    const double t = 5.0 + 0.1 * k;
+    const Eigen::Vector3d p(2.0 + 0.01 * k, 3.0, 1.0);
+    for (int a = 1; a <= 3; ++a) {
+      const Eigen::Vector3d anchor = a == 1 ? Eigen::Vector3d(0, 0, 1)
+                                            : a == 2 ? Eigen::Vector3d(8, 0, 1)
+                                                     : Eigen::Vector3d(0, 8, 1);
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f,0,-80,-82\n", t, a, (anchor - p).norm());
+      ranges += buf;
+    }
+    char buf[120];
+    std::snprintf(buf, sizeof buf, "%.2f %.4f %.4f\n", t, p.x(), p.y());
+    ref += buf;
+  }
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / "r.csv", ranges);
+  r.anchors = (dir / "a.csv").string();
+  r.reference = test::writeText(dir / "ref.txt", ref);
+  r.tag_height = 1.0;
+  const auto s = data::importCsv(r, (dir / "out").string());
+  const auto ds = data::loadDataset(s.manifest, "");
+  EXPECT_FALSE(ds.manifest.reference_heading);
+  EXPECT_EQ(ds.counts.at("ranges_with_features"), 300);  // the powers reach the ranges
+  const auto m = eval::evaluateMethod(ds, "uwb-gn", 1, 1);
+  EXPECT_LT(m.metrics.rmse_2d, 1e-3);
+  EXPECT_TRUE(std::isnan(m.metrics.rmse_yaw_deg));
+}
+
+// A scan that does not start at -aperture/2 keeps its rays' directions: the sensor turns by the
+// scan's centre angle.
+TEST(CsvImport, AnAsymmetricScanKeepsItsRayDirections) {
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "a.csv", "1,0,0,1\n");
+  test::writeText(dir / "r.csv", "1.0,1,3\n");
+  data::CsvImportRequest r;
+  r.ranges = (dir / "r.csv").string();
+  r.anchors = (dir / "a.csv").string();
+  r.scans = test::writeText(dir / "s.csv", "1.0,0.0,0.5,2,0,3,nan,4\n");
+  r.scan_pose = Eigen::Vector3d(0.1, 0.0, 0.0);
+  const auto s = data::importCsv(r, (dir / "out").string());
+  EXPECT_EQ(s.scans, 1);
+  const auto ds = data::loadDataset(s.manifest, "");
+  std::vector<Eigen::Vector2d> points;
+  for (const auto& e : ds.events)
+    if (const auto* scan = std::get_if<loc::LaserScan>(&e)) {
+      EXPECT_FLOAT_EQ(scan->max_range, 4.0f);
+      loc::forEachScanEndpoint(*scan, 1, 0.0, 10.0,
+                               [&](size_t, const Eigen::Vector2d& p) { points.push_back(p); });
+    }
+  ASSERT_EQ(points.size(), 3u);  // the rays reading 0 and nan did not return
+  const double angles[] = {0.0, 1.0, 2.0}, ranges[] = {2.0, 3.0, 4.0};
+  for (size_t i = 0; i < 3; ++i) {
+    const Eigen::Vector2d expected =
+        Eigen::Vector2d(0.1, 0) + ranges[i] * Eigen::Vector2d(std::cos(angles[i]), std::sin(angles[i]));
+    EXPECT_LT((points[i] - expected).norm(), 1e-5) << i;
+  }
+}
+
+TEST(CsvImport, MalformedRowsNameFileAndLine) {
+  const auto dir = test::scratchDir();
+  test::writeText(dir / "a.csv", "1,0,0,1\n");
+  data::CsvImportRequest r;
+  r.anchors = (dir / "a.csv").string();
+  r.ranges = test::writeText(dir / "r.csv", "1.0,1,3\n1.1,1,abc\n");
+  test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "o").string()); },
+                                              {"r.csv:2", "range"});
+  r.ranges = test::writeText(dir / "r2.csv", "1.0,1,3\n1.1,1\n");
+  test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "o").string()); },
+                                              {"r2.csv:2", "3 fields"});
+  r.ranges = test::writeText(dir / "r3.csv", "time,beacon,range\n1.0,1,3\n");
+  test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "o").string()); },
+                                              {"r3.csv:1", "anchor_id"});
+  // Rows with an unusable time or a non-finite range are skipped and counted.
+  r.ranges = test::writeText(dir / "r4.csv", "1.0,1,3\n-5,1,3\n1.2,1,nan\n1.3,1,3\n");
+  const auto s = data::importCsv(r, (dir / "o").string());
+  EXPECT_EQ(s.ranges, 2);
+  EXPECT_EQ(s.skipped.at("range_negative_time"), 1);
+  EXPECT_EQ(s.skipped.at("range_non_finite"), 1);
+}
