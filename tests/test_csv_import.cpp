@@ -9,6 +9,7 @@
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/csv_import.hpp"
 #include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/librsf_import.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 
@@ -215,4 +216,63 @@ TEST(CsvImport, MalformedRowsNameFileAndLine) {
   EXPECT_EQ(s.ranges, 2);
   EXPECT_EQ(s.skipped.at("range_negative_time"), 1);
   EXPECT_EQ(s.skipped.at("range_non_finite"), 1);
+}
+
+// A libRSF text file written here (the format of its datasets' readme files): a robot driving a
+// circle among four anchors, differential-drive odometry, ground truth in the _GT file beside.
+TEST(LibrsfImport, ReadsRangesOdometryAndTheReferenceBeside) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector2d anchors[] = {{0, 0}, {6, 0}, {6, 6}, {0, 6}};
+  const int ids[] = {105, 107, 108, 109};
+  std::string input = "# comment\n", gt;
+  const double radius = 2.0, v = 0.4, w = v / radius, base = 0.0785;
+  for (int k = 0; k <= 300; ++k) {
+    const double t = 0.128 * k, a = w * t;
+    const Eigen::Vector2d p(3.0 + radius * std::sin(a), 1.0 + radius * (1 - std::cos(a)));
+    char buf[200];
+    const int i = k % 4;
+    std::snprintf(buf, sizeof buf, "range2 %.6f %.9f 0.0025 %.3f %.3f %d 0\n", t,
+                  (p - anchors[i]).norm(), anchors[i].x(), anchors[i].y(), ids[i]);
+    input += buf;
+    std::snprintf(buf, sizeof buf, "odom2diff %.6f %.9f %.9f 0 %.4f 0.0001 0.0001 0.0001\n", t,
+                  v + w * base / 2, v - w * base / 2, base);
+    input += buf;
+    std::snprintf(buf, sizeof buf, "point2 %.6f %.9f %.9f 0 0 0 0\n", t, p.x(), p.y());
+    gt += buf;
+  }
+  input += "imu3 1.0 0 0 0\n";
+  const auto file = test::writeText(dir / "Loop_Input.txt", input);
+  test::writeText(dir / "Loop_GT.txt", gt);
+  const auto s = data::importLibrsf(file, (dir / "out").string());
+  EXPECT_EQ(s.ranges, 301);
+  EXPECT_EQ(s.anchors, 4);
+  EXPECT_EQ(s.ground_truth_rows, 301);
+  EXPECT_EQ(s.skipped.at("other_type_imu3"), 1);
+  const auto ds = data::loadDataset(s.manifest, "");
+  ASSERT_TRUE(ds.manifest.uwb_sigma.has_value());
+  EXPECT_NEAR(*ds.manifest.uwb_sigma, 0.05, 1e-9);  // the square root of the variance field
+  EXPECT_FALSE(ds.manifest.reference_heading);
+  EXPECT_EQ(uwb::findAnchor(ds.anchors, 108)->position, Eigen::Vector3d(6, 6, 0));
+  // Dead reckoning from the true start pose (heading 0) follows the circle.
+  Eigen::Vector3d pose(3.0, 1.0, 0.0);
+  for (const auto& e : ds.events)
+    if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) pose = composePose(pose, o->delta);
+  const double a_end = w * 0.128 * 300;
+  EXPECT_LT((pose.head<2>() - Eigen::Vector2d(3.0 + radius * std::sin(a_end),
+                                              1.0 + radius * (1 - std::cos(a_end))))
+                .norm(),
+            1e-4);
+  const auto m = eval::evaluateMethod(ds, "graph-uwb-odom", 1, 1);
+  std::printf("[ LIBRSF   ] graph-uwb-odom rmse_2d %.4f m\n", m.metrics.rmse_2d);
+  EXPECT_LT(m.metrics.rmse_2d, 0.05);
+  // A malformed line is named.
+  test::writeText(dir / "Bad_Input.txt", "range2 1.0 2.0 0.01 0 0\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importLibrsf((dir / "Bad_Input.txt").string(), (dir / "o2").string()); },
+      {"Bad_Input.txt:1", "range2", "got 5 fields"});
+  test::writeText(dir / "Moved_Input.txt",
+                  "range2 1.0 2.0 0.01 0 0 7\nrange2 1.1 2.0 0.01 1 0 7\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importLibrsf((dir / "Moved_Input.txt").string(), (dir / "o3").string()); },
+      {"Moved_Input.txt:2", "anchor 7"});
 }

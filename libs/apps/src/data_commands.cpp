@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
+#include "uwbloc/dataset/librsf_import.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
 #include "uwbloc/dataset/scenario.hpp"
 #include "uwbloc/dataset/text_io.hpp"
@@ -52,10 +53,10 @@ void ImportCommand::declare(CLI::App& parser) {
   cmd->add_option("format", format_,
                   "source format: hanyang (one dynamic run folder), carmen (a .log or .log.gz), "
                   "plaza (the Plaza folder), lias (one UWB_*.csv file of the LIAS-CUHKSZ "
-                  "planar set, dynamic or static) or csv (your own CSV files: --ranges, "
-                  "--anchors, ...)")
+                  "planar set, dynamic or static), librsf (a libRSF text file: range2, "
+                  "odom2diff, point2 lines) or csv (your own CSV files: --ranges, --anchors, ...)")
       ->required()
-      ->check(CLI::IsMember({"hanyang", "carmen", "plaza", "lias", "csv"}));
+      ->check(CLI::IsMember({"hanyang", "carmen", "plaza", "lias", "librsf", "csv"}));
   cmd->add_option("source", source_,
                   "source folder or file (as given, or relative to the data directory), e.g. "
                   "hanyang_outdoor_uwb/LOS_TrajA_Case1; csv: the ranges file (or --ranges)");
@@ -81,7 +82,8 @@ void ImportCommand::declare(CLI::App& parser) {
   cmd->add_option("--imu", csv_.imu, "csv: IMU 't,gx,gy,gz,ax,ay,az' [rad/s, m/s^2]");
   cmd->add_option("--reference", csv_.reference,
                   "csv: reference poses, TUM or 't,x,y[,theta]' (without theta no heading is "
-                  "scored)");
+                  "scored); librsf: the ground-truth file (default: the _GT file beside the "
+                  "_Input file)");
   cmd->add_option("--scans", csv_.scans,
                   "csv: LiDAR scans, one a row: 't,angle_min,angle_increment,r0,r1,...'");
   cmd->add_option("--tag", tags_,
@@ -128,6 +130,8 @@ int ImportCommand::run() {
     s = data::importHanyang(src, out_, hanyang_);
   else if (format_ == "lias")
     s = data::importLias(src, out_, lias_);
+  else if (format_ == "librsf")
+    s = data::importLibrsf(src, out_, csv_.reference);
   else if (format_ == "plaza")
     s = data::importPlaza(src, out_);
   else

@@ -80,6 +80,9 @@ std::string formatManifest(const ManifestDraft& d) {
   if (d.lever_arm)
     ini << "lever_arm_x = " << number("%.4f", d.lever_arm->x())
         << "\nlever_arm_y = " << number("%.4f", d.lever_arm->y()) << "\n";
+  if (d.uwb_sigma)
+    ini << "\n[uwb]\n# The range noise the source states: every UWB method's default sigma.\nsigma = "
+        << number("%.6g", *d.uwb_sigma) << "\n";
   if (d.bounds_range_sigma || d.bounds_odometry) ini << "\n[bounds]\n";
   if (d.bounds_range_sigma)
     ini << "# The LOS range noise, for the Cramer-Rao bounds.\nrange_sigma = "

@@ -133,6 +133,7 @@ struct ManifestDraft {
   /// (xy per metre, theta per radian, theta per metre).
   std::optional<double> bounds_range_sigma;
   std::optional<Eigen::Vector3d> bounds_odometry;
+  std::optional<double> uwb_sigma;  ///< [uwb] sigma: the range noise the source states [m]
 };
 
 /// The manifest text of `draft`.
