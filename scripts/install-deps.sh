@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 packages=(build-essential cmake ninja-build ccache pkg-config
           libmrpt-dev mrpt-common libeigen3-dev libceres-dev libcli11-dev nlohmann-json3-dev
-          libgtest-dev libbenchmark-dev libxgboost-dev)
+          libgtest-dev libbenchmark-dev libxgboost-dev libmatio-dev)
 if [ "${UWBLOC_WITH_MRPT_APPS:-0}" = "1" ]; then packages+=(mrpt-apps); fi
 if [ "${UWBLOC_WITH_FUZZ:-0}" = "1" ]; then packages+=(clang libclang-rt-14-dev); fi
 missing=()

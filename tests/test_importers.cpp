@@ -3,8 +3,12 @@
 // timestamps, and dead reckoning that starts at the reference's first time.
 #include <gtest/gtest.h>
 
+#include <matio.h>
+
 #include <cmath>
+#include <iomanip>
 #include <sstream>
+#include <tuple>
 
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
@@ -172,10 +176,85 @@ TEST(Plaza, AnIdOutsideTheIntegersIsAnErrorNamingTheLine) {
   const auto td = test::writeText(dir / "P_TD.txt", "1 0 1 3.0\n1.5 0 3e20 4.0\n");
   test::expectErrorMentions<data::InputError>(
       [&] { data::importPlaza(dir.string(), (dir / "out").string()); },
-      {td + ":2", "beacon", "integer id", "3e20"});
+      {td + ":2", "beacon", "integer id", "3e+20"});
   test::writeText(dir / "P_TD.txt", "1 0 1 3.0\n1.5 0 2.5 4.0\n");
   test::expectErrorMentions<data::InputError>(
       [&] { data::importPlaza(dir.string(), (dir / "out").string()); }, {td + ":2", "2.5"});
+}
+
+// GTSAM's layout: _DR.txt and _TD.txt, the reference and the beacons in a .mat (written here
+// with libmatio). The import equals that of the all-text layout.
+TEST(Plaza, TheMatLayoutImportsLikeTheTextLayout) {
+  const auto dir = test::scratchDir();
+  const auto txt = dir / "txt", mat = dir / "mat";
+  std::filesystem::create_directories(txt);
+  std::filesystem::create_directories(mat);
+  std::ostringstream dr, td, gt;
+  std::vector<double> gt_cols[4];
+  Eigen::Vector3d pose(2.0, 1.0, 0.3);
+  for (int k = 0; k <= 200; ++k) {
+    const double t = 0.5 * k;
+    if (k > 0) {
+      pose = loc::composePose(pose, {0.5 * std::cos(0.01), 0.5 * std::sin(0.01), 0.02});
+      dr << t << " 0.5 0.02\n";
+      td << t << " 0 " << 1 + k % 4 << " " << 5.0 + 0.01 * k << "\n";
+    }
+    gt << std::setprecision(17) << t << " " << pose.x() << " " << pose.y() << " " << pose.z()
+       << "\n";
+    for (int c = 0; c < 4; ++c) gt_cols[c].push_back(c == 0 ? t : pose(c - 1));
+  }
+  for (const auto& d : {txt, mat}) {
+    test::writeText(d / "P_DR.txt", dr.str());
+    test::writeText(d / "P_TD.txt", td.str());
+  }
+  test::writeText(txt / "P_GT.txt", gt.str());
+  test::writeText(txt / "P_TL.txt", "1 0 0\n2 50 0\n3 50 50\n4 0 50\n");
+  {
+    mat_t* file = Mat_CreateVer((mat / "P.mat").string().c_str(), nullptr, MAT_FT_MAT5);
+    ASSERT_NE(file, nullptr);
+    std::vector<double> gt_data;  // column-major
+    for (const auto& c : gt_cols) gt_data.insert(gt_data.end(), c.begin(), c.end());
+    size_t gt_dims[2] = {gt_cols[0].size(), 4};
+    double tl_data[] = {1, 2, 3, 4, 0, 50, 50, 0, 0, 0, 50, 50};
+    size_t tl_dims[2] = {4, 3};
+    for (auto [name, dims, data] : {std::tuple{"GT", gt_dims, gt_data.data()},
+                                    std::tuple{"TL", tl_dims, tl_data}}) {
+      matvar_t* v = Mat_VarCreate(name, MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dims, data, 0);
+      ASSERT_NE(v, nullptr);
+      EXPECT_EQ(Mat_VarWrite(file, v, MAT_COMPRESSION_NONE), 0);
+      Mat_VarFree(v);
+    }
+    Mat_Close(file);
+  }
+  const auto a = data::loadDataset(data::importPlaza(txt.string(), (dir / "a").string()).manifest, "");
+  const auto s = data::importPlaza(mat.string(), (dir / "b").string());
+  EXPECT_NE(s.notes.back().find("P.mat variable GT"), std::string::npos) << s.notes.back();
+  const auto b = data::loadDataset(s.manifest, "");
+  ASSERT_EQ(a.events.size(), b.events.size());
+  ASSERT_EQ(a.ground_truth.size(), b.ground_truth.size());
+  for (size_t k = 0; k < a.ground_truth.size(); ++k)
+    EXPECT_LT((a.ground_truth[k].pose - b.ground_truth[k].pose).norm(), 1e-6) << k;
+  EXPECT_EQ(a.anchors.size(), 4u);
+  for (const auto& anchor : a.anchors)
+    EXPECT_EQ(uwb::findAnchor(b.anchors, anchor.id)->position, anchor.position);
+  EXPECT_NEAR(eval::evaluateMethod(a, "odom", 1, 1).metrics.rmse_2d,
+              eval::evaluateMethod(b, "odom", 1, 1).metrics.rmse_2d, 1e-9);
+  // A .mat without the reference: an error naming the file and the variable.
+  std::filesystem::remove(mat / "P.mat");
+  {
+    mat_t* file = Mat_CreateVer((mat / "P.mat").string().c_str(), nullptr, MAT_FT_MAT5);
+    double tl_data[] = {1, 0, 0};
+    size_t tl_dims[2] = {1, 3};
+    matvar_t* v = Mat_VarCreate("TL", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, tl_dims, tl_data, 0);
+    Mat_VarWrite(file, v, MAT_COMPRESSION_NONE);
+    Mat_VarFree(v);
+    Mat_Close(file);
+  }
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importPlaza(mat.string(), (dir / "c").string()); }, {"P.mat", "no variable 'GT'"});
+  test::writeText(mat / "P.mat", "not a mat file");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importPlaza(mat.string(), (dir / "d").string()); }, {"P.mat", "libmatio"});
 }
 
 TEST(Odometry, DeadReckoningStartsAtTheFirstReferenceTime) {

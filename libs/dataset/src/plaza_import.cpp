@@ -11,6 +11,7 @@
 #include "uwbloc/dataset/manifest.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "mat_file.hpp"
 
 namespace fs = std::filesystem;
 
@@ -59,70 +60,141 @@ double detectDirection(const std::vector<DrRow>& dr, const std::vector<TimedPose
   return err[1] < err[0] ? -1.0 : 1.0;
 }
 
-// The file prefix of a Plaza folder ("Plaza2" for Plaza2_DR.txt).
+// The file prefix of a Plaza folder ("Plaza2" for Plaza2_DR.txt, or for Plaza2.mat).
 std::string plazaPrefix(const std::string& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throwInputError(dir, 0, "folder not found");
-  std::string prefix;
+  std::string from_txt, from_mat;
   for (const auto& e : fs::directory_iterator(dir)) {
     const std::string n = e.path().filename().string();
-    if (n.size() > 7 && n.rfind("_DR.txt") == n.size() - 7) prefix = n.substr(0, n.size() - 7);
+    if (n.size() > 7 && n.rfind("_DR.txt") == n.size() - 7) from_txt = n.substr(0, n.size() - 7);
+    if (n.size() > 4 && n.rfind(".mat") == n.size() - 4) from_mat = n.substr(0, n.size() - 4);
   }
-  if (prefix.empty()) throwInputError(dir, 0, "no Plaza*_DR.txt file");
-  return prefix;
+  if (!from_txt.empty()) return from_txt;
+  if (!from_mat.empty()) return from_mat;
+  throwInputError(dir, 0, "no Plaza*_DR.txt and no Plaza*.mat file");
+  return {};
+}
+
+// A table of the recording: its <prefix>_<name>.txt rows, else the matrix `name` of
+// <prefix>.mat (GTSAM's layout keeps the reference and the beacons there). Rows of at least
+// `columns` numbers; errors name the file and line (for the .mat, the variable and row).
+struct Table {
+  std::string source;  ///< for messages: the file, or "<file> variable <name>"
+  std::vector<int> lines;
+  std::vector<std::vector<double>> rows;
+};
+
+Table readTable(const std::string& dir, const std::string& prefix, const std::string& name,
+                size_t columns) {
+  const fs::path txt = fs::path(dir) / (prefix + "_" + name + ".txt");
+  const fs::path mat = fs::path(dir) / (prefix + ".mat");
+  std::error_code ec;
+  Table t;
+  if (fs::is_regular_file(txt, ec)) {
+    t.source = txt.string();
+    forEachRow(t.source, [&](int line, const std::vector<std::string>& f) {
+      if (f.size() < columns)
+        throwInputError(t.source, line,
+                        "expected " + std::to_string(columns) + " numbers, got " +
+                            std::to_string(f.size()));
+      std::vector<double> row;
+      for (size_t i = 0; i < f.size(); ++i)
+        row.push_back(parseNumber(f[i], t.source, line, "column " + std::to_string(i + 1)));
+      t.rows.push_back(std::move(row));
+      t.lines.push_back(line);
+    });
+    return t;
+  }
+  if (!fs::is_regular_file(mat, ec))
+    throwInputError(dir, 0, "neither " + txt.filename().string() + " nor " +
+                                mat.filename().string() + " (for the " + name + " table)");
+  t.source = mat.string() + " variable " + name;
+  t.rows = readMatMatrix(mat.string(), name);
+  for (size_t r = 0; r < t.rows.size(); ++r) {
+    t.lines.push_back(static_cast<int>(r + 1));
+    if (t.rows[r].size() < columns)
+      throwInputError(t.source, 0,
+                      "has " + std::to_string(t.rows[r].size()) + " columns, expected at least " +
+                          std::to_string(columns));
+  }
+  return t;
 }
 
 // The dead-reckoning rows (t, distance, heading change), bad rows skipped and counted.
-std::vector<DrRow> readDeadReckoning(const std::string& dr, ImportSummary& summary) {
+std::vector<DrRow> readDeadReckoning(const Table& dr, ImportSummary& summary) {
   std::vector<DrRow> dr_rows;
-  forEachRow(dr, [&](int line, const std::vector<std::string>& f) {
-    if (f.size() < 3) throwInputError(dr, line, "expected 't distance heading_change'");
-    const DrRow r{parseNumber(f[0], dr, line, "t"), parseNumber(f[1], dr, line, "distance"),
-                  parseNumber(f[2], dr, line, "heading_change")};
-    if (const char* problem = timestampProblem(r.t))
-      return void(++summary.skipped[std::string("odometry_") + problem]);
-    if (!std::isfinite(r.distance) || !std::isfinite(r.heading_change))
-      return void(++summary.skipped["odometry_non_finite"]);
-    if (!dr_rows.empty() && r.t < dr_rows.back().t)
-      return void(++summary.skipped["odometry_out_of_order"]);
+  for (const auto& f : dr.rows) {
+    const DrRow r{f[0], f[1], f[2]};
+    if (const char* problem = timestampProblem(r.t)) {
+      ++summary.skipped[std::string("odometry_") + problem];
+      continue;
+    }
+    if (!std::isfinite(r.distance) || !std::isfinite(r.heading_change)) {
+      ++summary.skipped["odometry_non_finite"];
+      continue;
+    }
+    if (!dr_rows.empty() && r.t < dr_rows.back().t) {
+      ++summary.skipped["odometry_out_of_order"];
+      continue;
+    }
     dr_rows.push_back(r);
-  });
+  }
   return dr_rows;
+}
+
+int tableId(const Table& t, size_t k, size_t column, const char* field) {
+  const double v = t.rows[k][column];
+  if (!(std::abs(v) < 1e9) || v != std::floor(v)) {
+    char value[40];
+    std::snprintf(value, sizeof value, "%.17g", v);
+    throwInputError(t.source, t.lines[k],
+                    std::string("field '") + field + "': expected an integer id (|id| < 1e9), got " +
+                        value);
+  }
+  return static_cast<int>(v);
 }
 
 }  // namespace
 
 ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
   const std::string prefix = plazaPrefix(dir);
-  const auto file = [&](const char* suffix) {
-    return (fs::path(dir) / (prefix + suffix)).string();
-  };
-
   ImportSummary summary;
   std::vector<loc::Event> events;
-  const std::vector<DrRow> dr_rows = readDeadReckoning(file("_DR.txt"), summary);
+  const Table dr = readTable(dir, prefix, "DR", 3), tl = readTable(dir, prefix, "TL", 3),
+              td = readTable(dir, prefix, "TD", 4), gt_table = readTable(dir, prefix, "GT", 4);
+  const std::vector<DrRow> dr_rows = readDeadReckoning(dr, summary);
   std::vector<uwb::Anchor> anchors;
-  const std::string tl = file("_TL.txt");
-  forEachRow(tl, [&](int line, const std::vector<std::string>& f) {
-    if (f.size() < 3) throwInputError(tl, line, "expected 'id x y'");
-    anchors.push_back({parseId(f[0], tl, line, "id"),
-                       {parseNumber(f[1], tl, line, "x"), parseNumber(f[2], tl, line, "y"), 0.0}});
-  });
-  const std::string td = file("_TD.txt");
+  for (size_t k = 0; k < tl.rows.size(); ++k) {
+    const Eigen::Vector3d p(tl.rows[k][1], tl.rows[k][2], 0.0);
+    if (!p.allFinite()) throwInputError(tl.source, tl.lines[k], "non-finite beacon position");
+    anchors.push_back({tableId(tl, k, 0, "id"), p});
+  }
   long ranges = 0;
-  forEachRow(td, [&](int line, const std::vector<std::string>& f) {
-    if (f.size() < 4) throwInputError(td, line, "expected 't sender beacon range'");
+  for (size_t k = 0; k < td.rows.size(); ++k) {
     uwb::Range r;
-    r.t = parseNumber(f[0], td, line, "t");
-    if (const char* problem = timestampProblem(r.t))
-      return void(++summary.skipped[std::string("range_") + problem]);
-    r.anchor_id = parseId(f[2], td, line, "beacon");
-    r.range = parseNumber(f[3], td, line, "range");
+    r.t = td.rows[k][0];
+    if (const char* problem = timestampProblem(r.t)) {
+      ++summary.skipped[std::string("range_") + problem];
+      continue;
+    }
+    r.anchor_id = tableId(td, k, 2, "beacon");
+    r.range = td.rows[k][3];
     r.tag_on_robot.setZero();
     events.emplace_back(r);
     ++ranges;
-  });
-  const auto gt = readGroundTruth(file("_GT.txt"), GroundTruthFormat::kTimeXyPhi);
+  }
+  std::vector<TimedPose> gt;
+  for (size_t k = 0; k < gt_table.rows.size(); ++k) {
+    const auto& f = gt_table.rows[k];
+    TimedPose p{f[0], Eigen::Vector3d(f[1], f[2], f[3])};
+    if (!p.pose.allFinite() || timestampProblem(p.t))
+      throwInputError(gt_table.source, gt_table.lines[k], "non-finite value or unusable time");
+    if (!gt.empty() && p.t < gt.back().t)
+      throwInputError(gt_table.source, gt_table.lines[k], "time goes backwards");
+    gt.push_back(p);
+  }
+  if (gt.empty()) throwInputError(gt_table.source, 0, "no reference rows");
   double err_forward = 0.0, err_backward = 0.0;
   const double sign = detectDirection(dr_rows, gt, &err_forward, &err_backward);
   for (const auto& r : dr_rows) {
@@ -153,6 +225,8 @@ ImportSummary importPlaza(const std::string& dir, const std::string& out_dir) {
   m.tag_height = 0.0;
   summary.manifest = writeManifest(out_dir, m);
   summary.notes.push_back(direction);
+  summary.notes.push_back("Tables read from: DR " + dr.source + "; TD " + td.source + "; TL " +
+                          tl.source + "; GT " + gt_table.source);
   summary.ranges = ranges;
   summary.anchors = static_cast<long>(anchors.size());
   summary.ground_truth_rows = static_cast<long>(gt.size());
