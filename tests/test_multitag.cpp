@@ -275,3 +275,57 @@ TEST(Lias, StaticCalibrationCarriesToTheFastDynamicRun) {
 
 }  // namespace
 }  // namespace uwbloc
+
+namespace uwbloc {
+namespace {
+
+// A node that stands still becomes an anchor where it stands; one that moves at 1 m/s does not.
+TEST(MobileNode, StillNodeIsAnAnchorAMovingOneIsNot) {
+  const std::vector<uwb::Anchor> fixed = {{1, {0, 0, 1.2}}, {2, {0, 8.28, 1.2}}, {3, {1.6, 8.28, 1.2}}};
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  for (double speed : {0.0, 1.0}) {
+    loc::MobileAnchors mobile(20, std::nullopt, 0.1);
+    double t = 0.0;
+    for (int k = 0; k < 100; ++k, t += 0.05) {
+      const Eigen::Vector3d node(1.5, 2.0 + speed * t, 0.8);
+      for (const auto& a : fixed) {
+        uwb::Range r;
+        r.t = t;
+        r.tag_id = 1;
+        r.on_robot = false;
+        r.anchor_id = a.id;
+        r.tag_on_robot = Eigen::Vector3d(0, 0, 0.8);
+        r.range = (a.position - node).norm() + noise(rng);
+        mobile.add(r, fixed);
+      }
+    }
+    const auto anchor = mobile.anchor(uwb::kMobileAnchorBase + 1, t);
+    if (speed == 0.0) {
+      ASSERT_TRUE(anchor.has_value());
+      EXPECT_LT((anchor->position.head<2>() - Eigen::Vector2d(1.5, 2.0)).norm(), 0.1);
+      EXPECT_DOUBLE_EQ(anchor->position.z(), 0.8);
+      EXPECT_FALSE(mobile.anchor(uwb::kMobileAnchorBase + 1, t + 3.0).has_value());  // stale
+    } else {
+      EXPECT_FALSE(anchor.has_value());
+    }
+  }
+}
+
+// The mobile-node paper's corridor (3 anchors, a person's tag, a slow cart that stops): the
+// cart as a temporary anchor lowers the error of least squares and of the CTRV EKF.
+TEST(MobileNode, TheCartHelpsInTheCorridor) {
+  const data::Dataset ds = test::simulatedScenario("corridor", 1);
+  for (const char* m : {"uwb-ls", "uwb-chan", "uwb-ctrv-ekf"}) {
+    const auto with = eval::evaluateMethod(ds, m, 1, 1);
+    const auto without = eval::evaluateMethod(ds, std::string(m) + ":mobile=false", 1, 1);
+    std::printf("[ MOBILE   ] %-13s rmse %.3f m with the cart, %.3f m without; max %.3f / %.3f\n",
+                m, with.metrics.rmse_2d, without.metrics.rmse_2d, with.metrics.max_2d,
+                without.metrics.max_2d);
+    EXPECT_LT(with.metrics.rmse_2d, 0.9 * without.metrics.rmse_2d) << m;
+    EXPECT_EQ(without.rejected.count("mobile_anchor_moving"), 0u) << m;
+  }
+}
+
+}  // namespace
+}  // namespace uwbloc

@@ -193,7 +193,10 @@ void AugmentCommand::declare(CLI::App& parser) {
       ->required();
   cmd->add_option("--anchors,-a", r.anchors_csv, "anchors CSV (id,x,y,z)")->required();
   cmd->add_option("--out,-o", out_, "output folder")->required();
-  cmd->add_option("--scenario,-s", r.scenario, "take the [uwb] noise model from this scenario");
+  cmd->add_option("--scenario,-s", r.scenario,
+                  "take the [uwb] model from this scenario (as given, or in the project's "
+                  "datasets/scenarios/); its tag_<id> keys add tags on the robot (a recording "
+                  "with its own ranges keeps them as tag 0)");
   cmd->add_option("--map", r.map,
                   "map for NLOS: a map file, or 'scans' to map the recording's own scans at the "
                   "reference poses (default: no NLOS)");
@@ -206,6 +209,8 @@ void AugmentCommand::declare(CLI::App& parser) {
 }
 
 int AugmentCommand::run() {
+  // A scenario is found as `simulate` finds it (as given, or in the project's scenarios).
+  if (!request_.scenario.empty()) request_.scenario = data::resolveInputPath(request_.scenario, "");
   std::cout << "Manifest: " << data::writeAugmented(request_, out_) << "\n";
   return kSuccess;
 }

@@ -119,8 +119,9 @@ namespace {
 // Ranges from every tag on the robot (tag 0, then the extra tags) to one anchor at time t.
 void measureRobotTags(RangeModel& model, double t, const Eigen::Vector3d& pose,
                       const uwb::Anchor& anchor, const UwbSimSpec& uwb,
-                      std::vector<loc::Event>& out, std::vector<RangeTruth>* truth) {
-  model.measure(t, 0, uwb::tagPosition(pose, uwb.tag), anchor, uwb.tag, out, truth);
+                      std::vector<loc::Event>& out, std::vector<RangeTruth>* truth,
+                      bool tag0 = true) {
+  if (tag0) model.measure(t, 0, uwb::tagPosition(pose, uwb.tag), anchor, uwb.tag, out, truth);
   for (const auto& [id, tag] : uwb.extra_tags)
     model.measure(t, id, uwb::tagPosition(pose, tag), anchor, tag, out, truth);
 }
@@ -290,7 +291,7 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
                                        const std::vector<uwb::Anchor>& anchors,
                                        const UwbSimSpec& uwb, const loc::OccupancyMap* map,
                                        uint64_t seed, std::vector<RangeTruth>* truth,
-                                       double max_gap) {
+                                       double max_gap, bool simulate_tag0) {
   std::vector<loc::Event> out = events;
   if (reference.size() < 2) return out;
   Rng rng(seed);
@@ -312,7 +313,7 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
       const double w = (t - a.t) / (b.t - a.t);
       Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
       pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
-      measureRobotTags(model, t, pose, anchors[i], uwb, out, truth);
+      measureRobotTags(model, t, pose, anchors[i], uwb, out, truth, simulate_tag0);
     }
   }
   loc::sortByTime(out);
@@ -353,9 +354,15 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
       throw InputError(e.what());
     }
   }
+  // A recording that has its own tag's ranges keeps them: only the extra tags are simulated,
+  // and the manifest keeps tag 0 where the recording has it.
+  const uwb::Range* own = nullptr;
+  for (const auto& e : rec.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->tag_id == 0 && !own) own = r;
+  const bool simulate_tag0 = !own || uwb.extra_tags.empty();
   std::vector<RangeTruth> truth;
   const auto events = augmentWithUwb(rec.events, reference, anchors, uwb, map ? &*map : nullptr,
-                                     req.seed, &truth, req.max_gap);
+                                     req.seed, &truth, req.max_gap, simulate_tag0);
 
   ensureDirectory(out_dir);
   const fs::path out(out_dir);
@@ -378,6 +385,17 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
   if (map) m.map = "map.gridmap.gz";
   m.anchors_csv = "anchors.csv";
   describeTags(uwb, m);
+  if (!simulate_tag0) {
+    m.tags[0] = own->tag_on_robot;
+    m.comments.push_back("Tag 0's ranges are the recording's own; tags " +
+                         [&] {
+                           std::string ids;
+                           for (const auto& [id, p] : uwb.extra_tags)
+                             ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+                           return ids;
+                         }() +
+                         " are simulated");
+  }
   m.bounds_range_sigma = uwb.sigma;
   const std::string manifest = writeManifest(out_dir, m);
   return manifest;

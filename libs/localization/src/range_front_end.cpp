@@ -46,7 +46,70 @@ RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb:
       increments_(uwb::IncrementQueueParams{params.iq_length, params.iq_zeta, params.iq_max_speed,
                                             params.iq_floor, 10}),
       tags_(tags),
-      primary_tag_(primary_tag) {}
+      primary_tag_(primary_tag),
+      mobile_(params.mobile_window, params.mobile_var.value, params.sigmaValue()) {}
+
+void MobileAnchors::add(const uwb::Range& range, const std::vector<uwb::Anchor>& fixed) {
+  const uwb::Anchor* a = uwb::findAnchor(fixed, range.anchor_id);
+  if (!a || !std::isfinite(range.range) || range.range <= 0.0) return;
+  Node& node = nodes_[range.tag_id];
+  const bool repeated = std::find(node.epoch_anchors.begin(), node.epoch_anchors.end(),
+                                  range.anchor_id) != node.epoch_anchors.end();
+  if (!node.epoch.empty() && (repeated || range.t - node.epoch_t > 0.5)) solve(node);
+  if (node.epoch.empty()) node.epoch_t = range.t;
+  node.height = range.tag_on_robot.z();
+  const auto planar = uwb::projectToPlane(range.range, a->position.z() - node.height);
+  if (!planar) return;
+  node.epoch.push_back({a->position.head<2>(), *planar, sigma_});
+  node.epoch_anchors.push_back(range.anchor_id);
+}
+
+void MobileAnchors::solve(Node& node) {
+  const uwb::Fix fix = uwb::solveGaussNewton(node.epoch);
+  const double t = node.epoch_t;
+  node.epoch.clear();
+  node.epoch_anchors.clear();
+  if (!fix.ok() || !fix.position.allFinite()) return;
+  const auto w = static_cast<size_t>(window_);
+  if (node.fixes.size() < w) {
+    node.fixes.push_back(fix.position);
+    node.fix_var.push_back(fix.covariance.diagonal());
+  } else {
+    node.fixes[node.count % w] = fix.position;
+    node.fix_var[node.count % w] = fix.covariance.diagonal();
+  }
+  ++node.count;
+  node.last_fix_t = t;
+  node.still = false;
+  if (node.fixes.size() < w) return;
+  // Per axis, the median and the spread 1.4826 MAD (squared): robust to the odd fix that three
+  // anchors flip to the mirror side.
+  Eigen::Vector2d mean, var, predicted = Eigen::Vector2d::Zero();
+  for (const auto& v : node.fix_var) predicted += v;
+  predicted /= static_cast<double>(w);
+  for (int axis = 0; axis < 2; ++axis) {
+    std::vector<double> v;
+    for (const auto& f : node.fixes) v.push_back(f(axis));
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(w / 2), v.end());
+    const double median = v[w / 2];
+    for (auto& x : v) x = std::abs(x - median);
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(w / 2), v.end());
+    mean(axis) = median;
+    var(axis) = std::pow(1.4826 * v[w / 2], 2);
+  }
+  const Eigen::Vector2d limit =
+      variance_ ? Eigen::Vector2d::Constant(*variance_) : Eigen::Vector2d(4.0 * predicted);
+  node.still = var.x() < limit.x() && var.y() < limit.y();
+  node.mean = mean;
+}
+
+std::optional<uwb::Anchor> MobileAnchors::anchor(int id, double t) const {
+  const auto it = nodes_.find(id - uwb::kMobileAnchorBase);
+  if (it == nodes_.end() || !it->second.still || t - it->second.last_fix_t > 2.0)
+    return std::nullopt;
+  return uwb::Anchor{id, Eigen::Vector3d(it->second.mean.x(), it->second.mean.y(),
+                                         it->second.height)};
+}
 
 bool RangeFrontEnd::judge(AcceptedRange& r) {
   auto& m = r.measurement;
@@ -86,11 +149,20 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
     if (reason) *reason = r;
     return std::nullopt;
   };
-  if (!range.on_robot) return fail(uwb::RejectReason::kOtherTag);
+  if (!range.on_robot) {
+    if (params_.mobile_anchors) mobile_.add(range, anchors_);
+    return fail(uwb::RejectReason::kOtherTag);
+  }
   if (tags_ == TagUse::kPrimary && range.tag_id != primary_tag_)
     return fail(uwb::RejectReason::kSecondaryTag);
   if (auto bad = uwb::checkValidity(range.range, {1e-3, params_.max_range})) return fail(*bad);
   const uwb::Anchor* anchor = uwb::findAnchor(anchors_, range.anchor_id);
+  std::optional<uwb::Anchor> mobile;
+  if (!anchor && range.anchor_id >= uwb::kMobileAnchorBase && params_.mobile_anchors) {
+    mobile = mobile_.anchor(range.anchor_id, range.t);
+    if (!mobile) return fail(uwb::RejectReason::kMobileMoving);
+    anchor = &*mobile;
+  }
   if (!anchor) return fail(uwb::RejectReason::kUnknownAnchor);
   if (range.t < last_t_ - 1e-9) return fail(uwb::RejectReason::kTimeBackwards);
   last_t_ = std::max(last_t_, range.t);

@@ -22,6 +22,7 @@ constexpr std::pair<RejectReason, const char*> kReasonNames[] = {
     {RejectReason::kOtherTag, "other_tag"},
     {RejectReason::kNlosModel, "nlos_model"},
     {RejectReason::kSecondaryTag, "secondary_tag"},
+    {RejectReason::kMobileMoving, "mobile_anchor_moving"},
 };
 }  // namespace
 

@@ -19,10 +19,19 @@ constexpr double kSettled = 0.05;
 /// larger graphs keep the starting std and say so (event noise_estimate_skipped_large_graph).
 constexpr size_t kMaxPosesForNoiseEstimate = 20000;
 
+// The graph's anchors are vertices (fixed, or calibrated within the run): a mobile node, whose
+// position moves, is not one of them; ranges to it count as unknown_anchor.
+RangeFrontEndParams fixedAnchorsOnly(RangeFrontEndParams p) {
+  p.mobile_anchors = false;
+  return p;
+}
+
 }  // namespace
 
 GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context, TagUse::kAll), params_(params), context_(context) {
+    : UwbEstimator(fixedAnchorsOnly(params.front), context, TagUse::kAll),
+      params_(params),
+      context_(context) {
   if (!context.initial_pose)
     throw ParamError("graph smoothing needs a start pose (the dataset's ground truth)");
   if (!params_.front_end.empty()) {

@@ -39,13 +39,14 @@ Simulation simulate(const Scenario& scenario, uint64_t seed);
 std::string writeSimulation(const Scenario& scenario, uint64_t seed, const std::string& out_dir);
 
 /// Adds simulated UWB ranges (the scenario's [uwb] model, its anchors and, when given, NLOS from
-/// `map`) to a recorded event stream, at the poses of `reference` (interpolated).
+/// `map`) to a recorded event stream, at the poses of `reference` (interpolated): from tag 0
+/// (unless `simulate_tag0` is false) and from each of the spec's extra tags.
 std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
                                        const std::vector<TimedPose>& reference,
                                        const std::vector<uwb::Anchor>& anchors,
                                        const UwbSimSpec& uwb, const loc::OccupancyMap* map,
                                        uint64_t seed, std::vector<RangeTruth>* truth = nullptr,
-                                       double max_gap = 2.0);
+                                       double max_gap = 2.0, bool simulate_tag0 = true);
 
 struct AugmentRequest {
   std::string rawlog;            ///< recording with scans and odometry
@@ -59,7 +60,9 @@ struct AugmentRequest {
   bool allow_bad_time = false;  ///< augment a recording whose timestamps have collapsed
 };
 
-/// augmentWithUwb() on files: writes augmented.rawlog, anchors.csv, reference.txt,
+/// augmentWithUwb() on files (a recording with ranges of its own keeps them as tag 0 when the
+/// scenario adds extra tags: only those are simulated): writes augmented.rawlog, anchors.csv,
+/// reference.txt,
 /// range_truth.csv, map.gridmap.gz (when NLOS is simulated) and dataset.ini into `out_dir`.
 /// Returns the manifest path.
 std::string writeAugmented(const AugmentRequest& request, const std::string& out_dir);

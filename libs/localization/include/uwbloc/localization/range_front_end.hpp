@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -43,6 +44,9 @@ struct RangeFrontEndParams {
   std::string nlos_model;      ///< NLOS model file (uwbloc nlos train); empty: none
   NlosUse nlos_use = NlosUse::kWeight;
   double nlos_reject = 0.9;    ///< P(NLOS) at which nlos_use=reject drops a range [-]
+  bool mobile_anchors = true;  ///< a still mobile node serves as a temporary anchor
+  int mobile_window = 20;      ///< the node's last fixes its stillness is judged on
+  AutoDouble mobile_var;       ///< per-axis variance under which it is still [m^2]; auto: 4x its fixes' own
 
   /// The fixed std, or the starting one when auto.
   double sigmaValue() const { return sigma.value.value_or(kStartRangeSigma); }
@@ -65,6 +69,13 @@ struct RangeFrontEndParams {
       "what the model's judgement does: weight (variance / (1 - P(NLOS))), correct (subtract "
       "the predicted error) or reject (drop at nlos_reject)");
     v("nlos_reject", nlos_reject, "P(NLOS) at which nlos_use=reject drops a range");
+    v("mobile", mobile_anchors,
+      "a mobile node (another tag ranging to the anchors) whose last fixes hold still becomes a "
+      "temporary anchor for the ranges to it (the mobile-node paper, section 3)");
+    v("mobile_n", mobile_window, "mobile node: fixes in its stillness test (the paper's m)");
+    v("mobile_var", mobile_var,
+      "mobile node: per-axis variance of those fixes under which it is still [m^2] (the "
+      "paper's eta); auto: 4 times the variance the fixes' own covariance predicts");
   }
 };
 
@@ -94,6 +105,40 @@ struct AcceptedRange {
   const char* nlos_decision = nullptr;
 };
 
+/// Mobile nodes as temporary anchors (the mobile-node paper, section 3): each node (a tag not on
+/// the robot) is multilaterated from its own ranges to the fixed anchors, one fix per epoch
+/// (a range to an anchor already in the epoch, or 0.5 s, closes it). When the last `window`
+/// fixes vary less than the threshold in x and in y (the paper's variance test, taken robustly:
+/// (1.4826 MAD)^2 about the median, as three anchors flip the odd fix to a mirror point), their
+/// median is the anchor kMobileAnchorBase + the node's tag id; when they vary more, or the last
+/// fix is over 2 s old, it is no anchor.
+class MobileAnchors {
+ public:
+  MobileAnchors(int window, std::optional<double> variance, double sigma)
+      : window_(std::max(window, 2)), variance_(variance), sigma_(sigma) {}
+  /// A node's range to a fixed anchor (others are ignored).
+  void add(const uwb::Range& range, const std::vector<uwb::Anchor>& fixed);
+  /// The node as an anchor at time t, when it is still.
+  std::optional<uwb::Anchor> anchor(int id, double t) const;
+
+ private:
+  struct Node {
+    std::vector<uwb::PlanarRange> epoch;
+    std::vector<int> epoch_anchors;
+    double epoch_t = 0.0, height = 0.0, last_fix_t = -1e300;
+    std::vector<Eigen::Vector2d> fixes;    ///< ring of the last `window` fixes
+    std::vector<Eigen::Vector2d> fix_var;  ///< their predicted per-axis variances
+    size_t count = 0;
+    bool still = false;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  };
+  void solve(Node& node);
+  int window_;
+  std::optional<double> variance_;
+  double sigma_;
+  std::map<int, Node> nodes_;
+};
+
 class RangeFrontEnd {
  public:
   /// `nlos`: the model named by params.nlos_model (resolveNlosModel), or none.
@@ -115,6 +160,7 @@ class RangeFrontEnd {
   double last_t_ = -1e300;
   TagUse tags_ = TagUse::kPrimary;
   int primary_tag_ = 0;
+  MobileAnchors mobile_;
 };
 
 /// Base of the UWB methods: owns the front end and turns an event into an accepted range,

@@ -25,6 +25,7 @@ enum class RejectReason {
   kOtherTag,       ///< measured by another tag (a mobile node), not by the robot's own
   kNlosModel,      ///< an NLOS model judged it NLOS (P >= nlos_reject), or its correction failed
   kSecondaryTag,   ///< from another of the robot's tags: the method tracks one tag point
+  kMobileMoving,   ///< to a mobile node that is not (or no longer) still enough to be an anchor
 };
 
 /// Stable snake_case names used in metrics.json's "rejected" map.
