@@ -98,8 +98,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       default: {
         fs::create_directories(in / "Planar_Dataset" / "Dynamic");
         fs::create_directories(in / "Dynamic");
-        writeParts(in, {"Planar_Dataset/Dynamic/README.md", "Dynamic/UWB_dynamic_exp_f.csv",
-                        "Dynamic/motion_capture_dynamic_exp_f.csv"},
+        writeParts(in,
+                   {"Planar_Dataset/Dynamic/README.md", "Dynamic/UWB_dynamic_exp_f.csv",
+                    "Dynamic/motion_capture_dynamic_exp_f.csv"},
                    parts);
         uwbloc::data::importLias((in / "Dynamic" / "UWB_dynamic_exp_f.csv").string(), out.string());
         break;

@@ -29,14 +29,22 @@ data::CsvImportRequest requestFrom(const std::string& args) {
       for (std::string p; std::getline(s, p, ',');) v.push_back(std::stod(p));
       return v;
     };
-    if (key == "--ranges") r.ranges = value;
-    else if (key == "--anchors") r.anchors = value;
-    else if (key == "--odometry") r.odometry = value;
-    else if (key == "--imu") r.imu = value;
-    else if (key == "--reference") r.reference = value;
-    else if (key == "--scans") r.scans = value;
-    else if (key == "--map") r.map = value;
-    else if (key == "--scan-max-range") r.scan_max_range = std::stod(value);
+    if (key == "--ranges")
+      r.ranges = value;
+    else if (key == "--anchors")
+      r.anchors = value;
+    else if (key == "--odometry")
+      r.odometry = value;
+    else if (key == "--imu")
+      r.imu = value;
+    else if (key == "--reference")
+      r.reference = value;
+    else if (key == "--scans")
+      r.scans = value;
+    else if (key == "--map")
+      r.map = value;
+    else if (key == "--scan-max-range")
+      r.scan_max_range = std::stod(value);
     else if (key == "--scan-pose") {
       const auto v = numbers();
       r.scan_pose = Eigen::Vector3d(v[0], v[1], v[2]);
@@ -78,8 +86,8 @@ TEST(CsvImport, ReadsEveryOdometryKind) {
   test::writeText(dir / "a.csv", "1,0,0,1\n2,10,0,1\n3,0,10,1\n");
   test::writeText(dir / "r.csv", "t,anchor,range\n10,1,5\n10.1,2,5\n");
   // A robot driving a circle of radius 2 m at 0.5 m/s, sampled at 10 Hz, as the three kinds.
-  std::string poses = "t,x,y,theta\n", vel = "t,v,omega\n", inc = "t,dx,dy,dtheta\n",
-              ref = "", plain_poses;
+  std::string poses = "t,x,y,theta\n", vel = "t,v,omega\n", inc = "t,dx,dy,dtheta\n", ref = "",
+              plain_poses;
   const double v = 0.5, w = 0.25;
   Eigen::Vector3d prev(0, 0, 0);
   for (int k = 0; k <= 200; ++k) {
@@ -111,12 +119,13 @@ TEST(CsvImport, ReadsEveryOdometryKind) {
     const auto ds = data::loadDataset(s.manifest, "");
     Eigen::Vector3d pose = Eigen::Vector3d::Zero();
     for (const auto& e : ds.events)
-      if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) pose = composePose(pose, o->delta);
+      if (const auto* o = std::get_if<loc::OdometryIncrement>(&e))
+        pose = composePose(pose, o->delta);
     return std::pair(pose, s);
   };
   const Eigen::Vector3d end(2.0 * std::sin(5.0), 2.0 * (1 - std::cos(5.0)), wrapAngle(5.0));
-  for (const auto& [file, text] : {std::pair{"poses.csv", poses}, std::pair{"vel.csv", vel},
-                                   std::pair{"inc.csv", inc}}) {
+  for (const auto& [file, text] :
+       {std::pair{"poses.csv", poses}, std::pair{"vel.csv", vel}, std::pair{"inc.csv", inc}}) {
     test::writeText(dir / file, text);
     const auto [pose, s] = finalPose(file, "auto", false);
     EXPECT_LT((pose.head<2>() - end.head<2>()).norm(), 1e-5) << file;
@@ -141,9 +150,9 @@ TEST(CsvImport, AReferenceWithoutHeadingIsNotScoredForHeading) {
     const double t = 5.0 + 0.1 * k;
     const Eigen::Vector3d p(2.0 + 0.01 * k, 3.0, 1.0);
     for (int a = 1; a <= 3; ++a) {
-      const Eigen::Vector3d anchor = a == 1 ? Eigen::Vector3d(0, 0, 1)
-                                            : a == 2 ? Eigen::Vector3d(8, 0, 1)
-                                                     : Eigen::Vector3d(0, 8, 1);
+      const Eigen::Vector3d anchor = a == 1   ? Eigen::Vector3d(0, 0, 1)
+                                     : a == 2 ? Eigen::Vector3d(8, 0, 1)
+                                              : Eigen::Vector3d(0, 8, 1);
       char buf[160];
       std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f,0,-80,-82\n", t, a, (anchor - p).norm());
       ranges += buf;
@@ -191,7 +200,8 @@ TEST(CsvImport, AnAsymmetricScanKeepsItsRayDirections) {
   const double angles[] = {0.0, 1.0, 2.0}, ranges[] = {2.0, 3.0, 4.0};
   for (size_t i = 0; i < 3; ++i) {
     const Eigen::Vector2d expected =
-        Eigen::Vector2d(0.1, 0) + ranges[i] * Eigen::Vector2d(std::cos(angles[i]), std::sin(angles[i]));
+        Eigen::Vector2d(0.1, 0) +
+        ranges[i] * Eigen::Vector2d(std::cos(angles[i]), std::sin(angles[i]));
     EXPECT_LT((points[i] - expected).norm(), 1e-5) << i;
   }
 }
@@ -258,8 +268,8 @@ TEST(LibrsfImport, ReadsRangesOdometryAndTheReferenceBeside) {
   for (const auto& e : ds.events)
     if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) pose = composePose(pose, o->delta);
   const double a_end = w * 0.128 * 300;
-  EXPECT_LT((pose.head<2>() - Eigen::Vector2d(3.0 + radius * std::sin(a_end),
-                                              1.0 + radius * (1 - std::cos(a_end))))
+  EXPECT_LT((pose.head<2>() -
+             Eigen::Vector2d(3.0 + radius * std::sin(a_end), 1.0 + radius * (1 - std::cos(a_end))))
                 .norm(),
             1e-4);
   const auto m = eval::evaluateMethod(ds, "graph-uwb-odom", 1, 1);

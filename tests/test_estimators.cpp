@@ -23,8 +23,8 @@ using namespace uwbloc;
 
 namespace {
 
-// The simulated PF-IBAS room (seed 1): UWB with NLOS, a LiDAR, odometry, an IMU and a map, so that every
-// registered method has what it needs. One dataset for the whole binary.
+// The simulated PF-IBAS room (seed 1): UWB with NLOS, a LiDAR, odometry, an IMU and a map, so that
+// every registered method has what it needs. One dataset for the whole binary.
 const data::Dataset& room() {
   static const data::Dataset ds = test::simulatedScenario("pfibas_room", 1);
   return ds;
@@ -33,22 +33,35 @@ const data::Dataset& room() {
 // 2D RMSE bound of each method on the room with filter seed 1, about 1.5 times what it scores
 // (measured: `uwbloc compare -d <room>/dataset.ini --methods all`). A newly registered method
 // fails here until it states its bound.
-const std::map<std::string, double> kRoomBound = {
-    {"uwb-ls", 0.70},        {"uwb-gn", 0.60},
-    {"uwb-chan", 0.60},      {"uwb-kf", 0.33},
-    {"uwb-akf", 0.57},       {"uwb-iakf", 0.72},
-    {"uwb-ctrv-ekf", 0.41},  {"uwb-ekf", 0.25},
-    {"uwb-ckf", 0.29},       {"uwb-hinf-ckf", 0.29},
-    {"uwb-iahckf", 0.29},    {"uwb-srukf", 0.29},
-    {"federated-ekf", 0.30}, {"uwb-shkf", 0.29},
-    {"uwb-ins", 0.28},       {"uwb-ins-ckf", 0.28},
-    {"uwb-ins-ickf", 0.28},
-    {"odom", 0.05},          {"lidar-icp", 0.17},
-    {"lidar-mcl", 0.03},     {"fused-naive", 0.04},
-    {"fused-pf", 0.03},      {"pf-sir", 0.03},
-    {"pf-ibas", 0.04},       {"pf-ibas-stratified", 0.04},
-    {"uwb-pf", 0.15},        {"graph-uwb-odom", 0.23},
-    {"pf-ibas+graph", 0.045}, {"uwb-multitag", 0.33}};
+const std::map<std::string, double> kRoomBound = {{"uwb-ls", 0.70},
+                                                  {"uwb-gn", 0.60},
+                                                  {"uwb-chan", 0.60},
+                                                  {"uwb-kf", 0.33},
+                                                  {"uwb-akf", 0.57},
+                                                  {"uwb-iakf", 0.72},
+                                                  {"uwb-ctrv-ekf", 0.41},
+                                                  {"uwb-ekf", 0.25},
+                                                  {"uwb-ckf", 0.29},
+                                                  {"uwb-hinf-ckf", 0.29},
+                                                  {"uwb-iahckf", 0.29},
+                                                  {"uwb-srukf", 0.29},
+                                                  {"federated-ekf", 0.30},
+                                                  {"uwb-shkf", 0.29},
+                                                  {"uwb-ins", 0.28},
+                                                  {"uwb-ins-ckf", 0.28},
+                                                  {"uwb-ins-ickf", 0.28},
+                                                  {"odom", 0.05},
+                                                  {"lidar-icp", 0.17},
+                                                  {"lidar-mcl", 0.03},
+                                                  {"fused-naive", 0.04},
+                                                  {"fused-pf", 0.03},
+                                                  {"pf-sir", 0.03},
+                                                  {"pf-ibas", 0.04},
+                                                  {"pf-ibas-stratified", 0.04},
+                                                  {"uwb-pf", 0.15},
+                                                  {"graph-uwb-odom", 0.23},
+                                                  {"pf-ibas+graph", 0.045},
+                                                  {"uwb-multitag", 0.33}};
 
 std::string testName(const ::testing::TestParamInfo<std::string>& info) {
   std::string n = info.param;

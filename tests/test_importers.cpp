@@ -2,7 +2,6 @@
 // Plaza's odometry direction found from the data, timestamps that cannot be used, collapsed
 // timestamps, and dead reckoning that starts at the reference's first time.
 #include <gtest/gtest.h>
-
 #include <matio.h>
 
 #include <cmath>
@@ -217,8 +216,8 @@ TEST(Plaza, TheMatLayoutImportsLikeTheTextLayout) {
     size_t gt_dims[2] = {gt_cols[0].size(), 4};
     double tl_data[] = {1, 2, 3, 4, 0, 50, 50, 0, 0, 0, 50, 50};
     size_t tl_dims[2] = {4, 3};
-    for (auto [name, dims, data] : {std::tuple{"GT", gt_dims, gt_data.data()},
-                                    std::tuple{"TL", tl_dims, tl_data}}) {
+    for (auto [name, dims, data] :
+         {std::tuple{"GT", gt_dims, gt_data.data()}, std::tuple{"TL", tl_dims, tl_data}}) {
       matvar_t* v = Mat_VarCreate(name, MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dims, data, 0);
       ASSERT_NE(v, nullptr);
       EXPECT_EQ(Mat_VarWrite(file, v, MAT_COMPRESSION_NONE), 0);
@@ -226,7 +225,8 @@ TEST(Plaza, TheMatLayoutImportsLikeTheTextLayout) {
     }
     Mat_Close(file);
   }
-  const auto a = data::loadDataset(data::importPlaza(txt.string(), (dir / "a").string()).manifest, "");
+  const auto a =
+      data::loadDataset(data::importPlaza(txt.string(), (dir / "a").string()).manifest, "");
   const auto s = data::importPlaza(mat.string(), (dir / "b").string());
   EXPECT_NE(s.notes.back().find("P.mat variable GT"), std::string::npos) << s.notes.back();
   const auto b = data::loadDataset(s.manifest, "");
@@ -251,7 +251,8 @@ TEST(Plaza, TheMatLayoutImportsLikeTheTextLayout) {
     Mat_Close(file);
   }
   test::expectErrorMentions<data::InputError>(
-      [&] { data::importPlaza(mat.string(), (dir / "c").string()); }, {"P.mat", "no variable 'GT'"});
+      [&] { data::importPlaza(mat.string(), (dir / "c").string()); },
+      {"P.mat", "no variable 'GT'"});
   test::writeText(mat / "P.mat", "not a mat file");
   test::expectErrorMentions<data::InputError>(
       [&] { data::importPlaza(mat.string(), (dir / "d").string()); }, {"P.mat", "libmatio"});

@@ -23,8 +23,7 @@
 namespace uwbloc {
 namespace {
 
-const std::vector<Eigen::Vector3d> kAnchors = {
-    {0, 0, 1.5}, {8, 0, 1.5}, {8, 8, 1.5}, {0, 8, 1.5}};
+const std::vector<Eigen::Vector3d> kAnchors = {{0, 0, 1.5}, {8, 0, 1.5}, {8, 8, 1.5}, {0, 8, 1.5}};
 const std::vector<Eigen::Vector3d> kTags = {
     {-0.07, -0.14, 1.0}, {-0.075, 0.14, 1.0}, {0.20, 0.145, 1.0}};
 
@@ -116,9 +115,10 @@ TEST(Multitag, HeadingConvergesWithinOneSecondWithoutMotion) {
     sum += err;
     ++n;
   }
-  std::printf("[ HEADING  ] uwb-multitag, standing still, 1 s after its first estimate: mean "
-              "|heading error| %.2f deg, worst %.2f deg over %ld estimates\n",
-              sum / n * 180.0 / M_PI, worst * 180.0 / M_PI, n);
+  std::printf(
+      "[ HEADING  ] uwb-multitag, standing still, 1 s after its first estimate: mean "
+      "|heading error| %.2f deg, worst %.2f deg over %ld estimates\n",
+      sum / n * 180.0 / M_PI, worst * 180.0 / M_PI, n);
   EXPECT_GT(n, 50);
   EXPECT_LT(sum / n * 180.0 / M_PI, 5.0);
   EXPECT_LT(worst * 180.0 / M_PI, 15.0);
@@ -226,7 +226,8 @@ TEST(Lias, ACorruptFileNamesItsLine) {
   // Without the README's tables: an error naming the README.
   test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md", "# nothing here\n");
   test::expectErrorMentions<data::InputError>(
-      [&] { data::importLias(uwb, (dir / "out").string()); }, {"README.md", "3 tags and 8 anchors"});
+      [&] { data::importLias(uwb, (dir / "out").string()); },
+      {"README.md", "3 tags and 8 anchors"});
 }
 
 // The shared recordings: biases calibrated on the three static runs at known poses, applied to
@@ -240,8 +241,7 @@ TEST(Lias, StaticCalibrationCarriesToTheFastDynamicRun) {
   for (int p = 1; p <= 3; ++p) {
     const auto out = dir / ("pos" + std::to_string(p));
     const auto s = data::importLias(
-        (root / "Static" / ("UWB_static_exp_8_14_pos" + std::to_string(p) + "_deg_0.csv"))
-            .string(),
+        (root / "Static" / ("UWB_static_exp_8_14_pos" + std::to_string(p) + "_deg_0.csv")).string(),
         out.string());
     EXPECT_GT(s.skipped.at("uwb_row_short"), 0);  // rows short of an anchor are counted
     statics.push_back(data::loadDataset(s.manifest, ""));
@@ -264,11 +264,11 @@ TEST(Lias, StaticCalibrationCarriesToTheFastDynamicRun) {
   const data::Dataset fast = data::loadDataset(s.manifest, "");
   EXPECT_EQ(fast.counts.at("ranges_bias_corrected"), s.ranges);
   const auto summary = eval::evaluateMethod(fast, "uwb-multitag", 1, 1);
-  std::printf("[ LIAS     ] fast run, static calibration: rmse_2d %.4f m, median %.4f, p95 %.4f; "
-              "yaw rmse %.2f deg, median %.2f, p95 %.2f\n",
-              summary.metrics.rmse_2d, summary.metrics.median_2d, summary.metrics.p95_2d,
-              summary.metrics.rmse_yaw_deg, summary.metrics.median_yaw_deg,
-              summary.metrics.p95_yaw_deg);
+  std::printf(
+      "[ LIAS     ] fast run, static calibration: rmse_2d %.4f m, median %.4f, p95 %.4f; "
+      "yaw rmse %.2f deg, median %.2f, p95 %.2f\n",
+      summary.metrics.rmse_2d, summary.metrics.median_2d, summary.metrics.p95_2d,
+      summary.metrics.rmse_yaw_deg, summary.metrics.median_yaw_deg, summary.metrics.p95_yaw_deg);
   EXPECT_LT(summary.metrics.rmse_2d, 0.05);
   EXPECT_LT(summary.metrics.rmse_yaw_deg, 7.5);
 }
@@ -281,7 +281,8 @@ namespace {
 
 // A node that stands still becomes an anchor where it stands; one that moves at 1 m/s does not.
 TEST(MobileNode, StillNodeIsAnAnchorAMovingOneIsNot) {
-  const std::vector<uwb::Anchor> fixed = {{1, {0, 0, 1.2}}, {2, {0, 8.28, 1.2}}, {3, {1.6, 8.28, 1.2}}};
+  const std::vector<uwb::Anchor> fixed = {
+      {1, {0, 0, 1.2}}, {2, {0, 8.28, 1.2}}, {3, {1.6, 8.28, 1.2}}};
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.1);
   for (double speed : {0.0, 1.0}) {

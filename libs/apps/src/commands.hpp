@@ -29,7 +29,7 @@ struct RunOptions {
   int repeat = 1;
   bool allow_bad_time = false;           ///< score a recording whose timestamps have collapsed
   bool allow_partial_reference = false;  ///< score against a reference covering < half the run
-  bool strict = false;  ///< exit 3 when a method is flagged (no estimate, low coverage)
+  bool strict = false;     ///< exit 3 when a method is flagged (no estimate, low coverage)
   std::string max_memory;  ///< e.g. "4G"; empty: half of the machine's memory
 };
 

@@ -9,13 +9,13 @@
 #include "commands.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
+#include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/librsf_import.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
 #include "uwbloc/dataset/scenario.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/evaluation/benchmark.hpp"
 #include "uwbloc/evaluation/calibration.hpp"
-#include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/evaluation/sensitivity.hpp"
 
 namespace uwbloc::apps {
@@ -111,7 +111,8 @@ int ImportCommand::run() {
     if (!scan_pose_.empty()) {
       const auto v = splitNumbers(scan_pose_, "--scan-pose");
       if (v.size() != 3 && v.size() != 4)
-        throw data::InputError("--scan-pose: expected 'x,y,yaw[,height]', got '" + scan_pose_ + "'");
+        throw data::InputError("--scan-pose: expected 'x,y,yaw[,height]', got '" + scan_pose_ +
+                               "'");
       csv_.scan_pose = Eigen::Vector3d(v[0], v[1], v[2]);
       if (v.size() == 4) csv_.scan_height = v[3];
     }
@@ -154,8 +155,8 @@ int ExportCommand::run() {
   const std::string data_dir = data::resolveDataDir(data_dir_);
   const auto ds = data::loadDataset(data::resolveInputPath(dataset_, data_dir), data_dir);
   const std::string args = data::exportCsv(ds, out_);
-  std::cout << "Exported " << ds.name << " to " << out_ << "\nRead it back with:\n  uwbloc import csv "
-            << args << " -o DIR\n";
+  std::cout << "Exported " << ds.name << " to " << out_
+            << "\nRead it back with:\n  uwbloc import csv " << args << " -o DIR\n";
   return kSuccess;
 }
 

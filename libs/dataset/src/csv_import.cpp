@@ -183,12 +183,15 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
   const std::string& path = req.odometry;
   const Table table = readTable(path);
   std::string kind = req.odometry_kind;
-  const size_t width = table.header.empty() ? table.rows.front().second.size()
-                                            : table.header.size();
+  const size_t width =
+      table.header.empty() ? table.rows.front().second.size() : table.header.size();
   if (kind == "auto" && !table.header.empty()) {
-    if (column(table.header, {"dx"}) >= 0) kind = "increments";
-    else if (column(table.header, {"v"}) >= 0) kind = "velocities";
-    else if (column(table.header, {"x"}) >= 0) kind = "poses";
+    if (column(table.header, {"dx"}) >= 0)
+      kind = "increments";
+    else if (column(table.header, {"v"}) >= 0)
+      kind = "velocities";
+    else if (column(table.header, {"x"}) >= 0)
+      kind = "poses";
   }
   if (kind == "auto" && width == 3) kind = "velocities";
   const size_t need = kind == "velocities" ? 3 : 4;
@@ -207,7 +210,8 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
     if (!t) continue;
     OdoRow r{*t, Eigen::Vector3d::Zero()};
     for (size_t i = 1; i < width; ++i)
-      r.v(static_cast<long>(i - 1)) = parseNumber(f[i], path, line, "column " + std::to_string(i + 1));
+      r.v(static_cast<long>(i - 1)) =
+          parseNumber(f[i], path, line, "column " + std::to_string(i + 1));
     if (!r.v.allFinite()) {
       ++s.skipped["odometry_non_finite"];
       continue;
@@ -230,8 +234,8 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
     std::snprintf(buf, sizeof buf,
                   "Odometry read as %s: dead reckoning follows the reference to %.2f m RMS over "
                   "the first 30 m (as %s: %.2f m)",
-                  kind.c_str(), std::min(e_inc, e_pose),
-                  kind == "poses" ? "increments" : "poses", std::max(e_inc, e_pose));
+                  kind.c_str(), std::min(e_inc, e_pose), kind == "poses" ? "increments" : "poses",
+                  std::max(e_inc, e_pose));
     s.notes.emplace_back(buf);
   }
   for (const auto& o : odometryIncrements(rows, kind)) events.emplace_back(o);
@@ -264,15 +268,18 @@ std::vector<TimedPose> readReference(const std::string& path, bool* heading) {
     // The readers of the manifest's formats, header row apart.
     std::vector<TimedPose> out;
     for (const auto& [line, f] : table.rows) {
-      if (f.size() != width) throwInputError(path, line, "expected " + std::to_string(width) + " fields");
+      if (f.size() != width)
+        throwInputError(path, line, "expected " + std::to_string(width) + " fields");
       TimedPose p;
       p.t = parseNumber(f[0], path, line, "t");
       double yaw = 0.0;
       if (width == 4) {
         yaw = parseNumber(f[3], path, line, "theta");
       } else {
-        const double qx = parseNumber(f[4], path, line, "qx"), qy = parseNumber(f[5], path, line, "qy"),
-                     qz = parseNumber(f[6], path, line, "qz"), qw = parseNumber(f[7], path, line, "qw");
+        const double qx = parseNumber(f[4], path, line, "qx"),
+                     qy = parseNumber(f[5], path, line, "qy"),
+                     qz = parseNumber(f[6], path, line, "qz"),
+                     qw = parseNumber(f[7], path, line, "qw");
         yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
       }
       p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"), yaw;
@@ -319,7 +326,8 @@ long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, Imp
     if (!std::isfinite(scan.angle_min) || !std::isfinite(scan.angle_increment))
       throwInputError(path, line, "angle_min and angle_increment must be finite");
     for (size_t i = 3; i < f.size(); ++i) {
-      const double r = f[i].empty() ? NAN : parseNumber(f[i], path, line, "r" + std::to_string(i - 3));
+      const double r =
+          f[i].empty() ? NAN : parseNumber(f[i], path, line, "r" + std::to_string(i - 3));
       const bool ok = std::isfinite(r) && r > 0.0;
       scan.ranges.push_back(ok ? static_cast<float>(r) : 0.0f);
       scan.valid.push_back(ok ? 1 : 0);
@@ -335,8 +343,7 @@ long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, Imp
     }
     scans.push_back(std::move(scan));
   }
-  const float max_range =
-      req.scan_max_range ? static_cast<float>(*req.scan_max_range) : longest;
+  const float max_range = req.scan_max_range ? static_cast<float>(*req.scan_max_range) : longest;
   if (!req.scan_max_range && !scans.empty()) {
     char buf[160];
     std::snprintf(buf, sizeof buf,
@@ -436,8 +443,8 @@ std::string exportCsv(const Dataset& ds, const std::string& out_dir) {
       ranges += "\n";
       if (r->on_robot) tags.try_emplace(r->tag_id, r->tag_on_robot);
     } else if (const auto* o = std::get_if<loc::OdometryIncrement>(&e)) {
-      std::snprintf(buf, sizeof buf, "%.7f,%.17g,%.17g,%.17g\n", o->t, o->delta.x(),
-                    o->delta.y(), o->delta.z());
+      std::snprintf(buf, sizeof buf, "%.7f,%.17g,%.17g,%.17g\n", o->t, o->delta.x(), o->delta.y(),
+                    o->delta.z());
       odometry += buf;
     } else if (const auto* m = std::get_if<loc::ImuSample>(&e)) {
       std::snprintf(buf, sizeof buf, "%.7f,0,0,%.17g,%.17g,%.17g,0\n", m->t, m->gyro_z,
@@ -454,8 +461,8 @@ std::string exportCsv(const Dataset& ds, const std::string& out_dir) {
       scans += "\n";
     }
   }
-  std::string args = "--ranges " + (out / "ranges.csv").string() + " --anchors " +
-                     (out / "anchors.csv").string();
+  std::string args =
+      "--ranges " + (out / "ranges.csv").string() + " --anchors " + (out / "anchors.csv").string();
   writeFileAtomic((out / "ranges.csv").string(), ranges);
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(ds.anchors));
   if (!odometry.empty()) {

@@ -80,8 +80,8 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
     }
     if (ds.manifest.tag_height) r->tag_on_robot.z() = *ds.manifest.tag_height;
     if (ds.manifest.lever_arm) r->tag_on_robot.head<2>() = *ds.manifest.lever_arm;
-    if (const auto* b = apply_bias ? findBias(ds.manifest.biases, r->anchor_id, r->tag_id)
-                                   : nullptr) {
+    if (const auto* b =
+            apply_bias ? findBias(ds.manifest.biases, r->anchor_id, r->tag_id) : nullptr) {
       r->range = (r->range - b->bias) / (1.0 + b->scale);
       ++corrected;
     }

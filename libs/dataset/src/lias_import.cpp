@@ -37,9 +37,9 @@ long daysFromCivil(long y, unsigned m, unsigned d) {
 
 // The coordinates a README's tables give.
 struct Setup {
-  std::map<int, Eigen::Vector3d> tags;                   ///< tag index -> local coordinates
-  std::vector<uwb::Anchor> anchors;                      ///< in the global frame
-  std::map<int, std::vector<Eigen::Vector3d>> poses;     ///< pose k -> (yaw_deg, x, y) rows
+  std::map<int, Eigen::Vector3d> tags;                ///< tag index -> local coordinates
+  std::vector<uwb::Anchor> anchors;                   ///< in the global frame
+  std::map<int, std::vector<Eigen::Vector3d>> poses;  ///< pose k -> (yaw_deg, x, y) rows
 };
 
 std::vector<std::string> tableCells(const std::string& line) {
@@ -136,8 +136,8 @@ std::vector<UwbRow> readUwb(const std::string& path, ImportSummary& summary) {
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
     const auto t = parseDateTime(f[0]);
     if (!t)
-      throwInputError(path, line, "field 1: expected a time 'YYYY-MM-DD H:MM:SS.fff', got '" +
-                                      f[0] + "'");
+      throwInputError(path, line,
+                      "field 1: expected a time 'YYYY-MM-DD H:MM:SS.fff', got '" + f[0] + "'");
     // Trailing empty fields (some static files end each row with ",,,,,,,,,") are no data.
     size_t n = f.size();
     while (n > 1 && f[n - 1].empty()) --n;
@@ -156,8 +156,10 @@ std::vector<UwbRow> readUwb(const std::string& path, ImportSummary& summary) {
     for (int k = 0; k < kAnchors * kTags; ++k) {
       const auto v = number(f[static_cast<size_t>(k + 1)]);
       row.ranges[static_cast<size_t>(k)] = v && *v > 0.0 ? *v : NAN;
-      if (!v) ++summary.skipped["range_not_a_number"];
-      else if (!(*v > 0.0)) ++summary.skipped["range_zero_or_negative"];
+      if (!v)
+        ++summary.skipped["range_not_a_number"];
+      else if (!(*v > 0.0))
+        ++summary.skipped["range_zero_or_negative"];
     }
     rows.push_back(row);
   });
@@ -177,8 +179,7 @@ std::vector<MocapRow> readMocap(const std::string& path, ImportSummary& summary)
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
     if (f[0] == "time") return;  // header
     const auto t = parseDateTime(f[0]);
-    if (!t || f.size() < 8)
-      throwInputError(path, line, "expected 'time,x,y,z,qw,qx,qy,qz'");
+    if (!t || f.size() < 8) throwInputError(path, line, "expected 'time,x,y,z,qw,qx,qy,qz'");
     double v[7];
     for (int i = 0; i < 7; ++i) {
       const auto x = number(f[static_cast<size_t>(i + 1)]);
@@ -201,15 +202,15 @@ std::vector<MocapRow> readMocap(const std::string& path, ImportSummary& summary)
 struct Convention {
   double yaw_sign = 1.0;
   double y_sign = 1.0;
-  double offset = 0.0;  ///< reference time = UWB time + offset [s]
+  double offset = 0.0;      ///< reference time = UWB time + offset [s]
   double yaw_offset = 0.0;  ///< robot heading = yaw_sign * yaw + yaw_offset [rad]
   double median_residual = INFINITY;
 };
 
 std::optional<Eigen::Vector3d> poseAt(const std::vector<MocapRow>& m, double t, double yaw_sign,
                                       double yaw_offset) {
-  auto hi = std::lower_bound(m.begin(), m.end(), t,
-                             [](const MocapRow& r, double v) { return r.t < v; });
+  auto hi =
+      std::lower_bound(m.begin(), m.end(), t, [](const MocapRow& r, double v) { return r.t < v; });
   if (hi == m.begin() || hi == m.end()) return std::nullopt;
   const auto lo = hi - 1;
   if (hi->t - lo->t > 0.1) return std::nullopt;
@@ -330,13 +331,13 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
   const std::string readme = params.readme.empty() ? findReadme(uwb_file, kind) : params.readme;
   const Setup setup = readSetup(readme, static_name ? static_name->section : "");
   if (setup.tags.size() != kTags || setup.anchors.size() != kAnchors)
-    throwInputError(readme, 0,
-                    "expected the coordinates of 3 tags and 8 anchors" +
-                        (static_name ? " under a '### .../" + static_name->section.substr(1) +
-                                           "' heading"
-                                     : std::string()) +
-                        ", found " + std::to_string(setup.tags.size()) + " and " +
-                        std::to_string(setup.anchors.size()));
+    throwInputError(
+        readme, 0,
+        "expected the coordinates of 3 tags and 8 anchors" +
+            (static_name ? " under a '### .../" + static_name->section.substr(1) + "' heading"
+                         : std::string()) +
+            ", found " + std::to_string(setup.tags.size()) + " and " +
+            std::to_string(setup.anchors.size()));
   const std::vector<UwbRow> uwb = readUwb(uwb_file, summary);
 
   std::vector<TimedPose> reference;
@@ -350,8 +351,8 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
     std::string mocap_file = fs::path(uwb_file).filename().string();
     if (mocap_file.rfind("UWB_", 0) != 0)
       throwInputError(uwb_file, 0, "a dynamic run's file name starts with 'UWB_'");
-    mocap_file = (fs::path(uwb_file).parent_path() / ("motion_capture_" + mocap_file.substr(4)))
-                     .string();
+    mocap_file =
+        (fs::path(uwb_file).parent_path() / ("motion_capture_" + mocap_file.substr(4))).string();
     const auto mocap = readMocap(mocap_file, summary);
     std::vector<double> z;
     for (const auto& r : mocap) z.push_back(r.p.z());
@@ -373,14 +374,13 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
                   "its link's median| %.3f m); tag height %.3f m (%s)",
                   conv.yaw_sign, conv.yaw_offset * 180.0 / M_PI,
                   conv.y_sign > 0 ? "as given" : "mirrored", conv.offset, conv.median_residual,
-                  height,
-                  params.tag_height ? "given" : "median z of the motion capture");
+                  height, params.tag_height ? "given" : "median z of the motion capture");
     summary.notes.emplace_back(buf);
     m.comments.emplace_back(buf);
     for (const auto& r : mocap)
-      reference.push_back({r.t - conv.offset, Eigen::Vector3d(r.p.x(), r.p.y(),
-                                                              wrapAngle(conv.yaw_sign * r.yaw +
-                                                                        conv.yaw_offset))});
+      reference.push_back(
+          {r.t - conv.offset,
+           Eigen::Vector3d(r.p.x(), r.p.y(), wrapAngle(conv.yaw_sign * r.yaw + conv.yaw_offset))});
   } else {
     const auto it = setup.poses.find(static_name->pose);
     if (it == setup.poses.end())

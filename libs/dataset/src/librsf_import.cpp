@@ -58,9 +58,10 @@ void readFile(const std::string& path, Parsed& p, ImportSummary& s, bool referen
     if (reference_only) return void(++s.skipped["reference_file_" + type]);
     if (type == "range2") {
       if (f.size() != 7 && f.size() != 8)
-        throwInputError(path, line,
-                        "range2: expected 't range variance anchor_x anchor_y anchor_id [snr]', got " +
-                            std::to_string(f.size() - 1) + " fields");
+        throwInputError(
+            path, line,
+            "range2: expected 't range variance anchor_x anchor_y anchor_id [snr]', got " +
+                std::to_string(f.size() - 1) + " fields");
       const auto t = time();
       if (!t) return;
       uwb::Range r;
@@ -86,7 +87,8 @@ void readFile(const std::string& path, Parsed& p, ImportSummary& s, bool referen
       if (f.size() < 9)
         throwInputError(path, line,
                         "odom2diff: expected 't v_right v_left v_y wheel_base ... var_right "
-                        "var_left var_y', got " + std::to_string(f.size() - 1) + " fields");
+                        "var_left var_y', got " +
+                            std::to_string(f.size() - 1) + " fields");
       const auto t = time();
       if (!t) return;
       const double vr = number(2, "v_right"), vl = number(3, "v_left"), vy = number(4, "v_y"),
@@ -136,9 +138,9 @@ ImportSummary importLibrsf(const std::string& file, const std::string& out_dir,
     loc::OdometryIncrement inc;
     inc.t = o.t;
     // The arc of speed v and yaw rate w, plus the sideways slip v_y, over dt.
-    const Eigen::Vector2d arc =
-        std::abs(a) < 1e-9 ? Eigen::Vector2d(o.v * dt, 0.0)
-                           : Eigen::Vector2d(o.v / o.w * std::sin(a), o.v / o.w * (1 - std::cos(a)));
+    const Eigen::Vector2d arc = std::abs(a) < 1e-9 ? Eigen::Vector2d(o.v * dt, 0.0)
+                                                   : Eigen::Vector2d(o.v / o.w * std::sin(a),
+                                                                     o.v / o.w * (1 - std::cos(a)));
     inc.delta << arc.x() - std::sin(a / 2) * o.vy * dt, arc.y() + std::cos(a / 2) * o.vy * dt, a;
     events.emplace_back(inc);
   }

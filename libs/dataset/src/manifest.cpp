@@ -81,7 +81,8 @@ std::string formatManifest(const ManifestDraft& d) {
     ini << "lever_arm_x = " << number("%.4f", d.lever_arm->x())
         << "\nlever_arm_y = " << number("%.4f", d.lever_arm->y()) << "\n";
   if (d.uwb_sigma)
-    ini << "\n[uwb]\n# The range noise the source states: every UWB method's default sigma.\nsigma = "
+    ini << "\n[uwb]\n# The range noise the source states: every UWB method's default sigma.\nsigma "
+           "= "
         << number("%.6g", *d.uwb_sigma) << "\n";
   if (d.bounds_range_sigma || d.bounds_odometry) ini << "\n[bounds]\n";
   if (d.bounds_range_sigma)

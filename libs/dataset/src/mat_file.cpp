@@ -39,14 +39,30 @@ std::vector<std::vector<double>> readMatMatrix(const std::string& path, const st
   if (rows * cols > 0 && !var->data) throwInputError(path, 0, what + " holds no data");
   double (*get)(const matvar_t*, size_t) = nullptr;
   switch (var->data_type) {
-    case MAT_T_DOUBLE: get = element<double>; break;
-    case MAT_T_SINGLE: get = element<float>; break;
-    case MAT_T_INT32: get = element<int32_t>; break;
-    case MAT_T_UINT32: get = element<uint32_t>; break;
-    case MAT_T_INT16: get = element<int16_t>; break;
-    case MAT_T_UINT16: get = element<uint16_t>; break;
-    case MAT_T_INT8: get = element<int8_t>; break;
-    case MAT_T_UINT8: get = element<uint8_t>; break;
+    case MAT_T_DOUBLE:
+      get = element<double>;
+      break;
+    case MAT_T_SINGLE:
+      get = element<float>;
+      break;
+    case MAT_T_INT32:
+      get = element<int32_t>;
+      break;
+    case MAT_T_UINT32:
+      get = element<uint32_t>;
+      break;
+    case MAT_T_INT16:
+      get = element<int16_t>;
+      break;
+    case MAT_T_UINT16:
+      get = element<uint16_t>;
+      break;
+    case MAT_T_INT8:
+      get = element<int8_t>;
+      break;
+    case MAT_T_UINT8:
+      get = element<uint8_t>;
+      break;
     default:
       throwInputError(path, 0, what + " has an element type this reader does not convert");
   }

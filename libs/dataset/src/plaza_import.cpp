@@ -6,12 +6,12 @@
 #include <filesystem>
 #include <sstream>
 
+#include "mat_file.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/manifest.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
-#include "mat_file.hpp"
 
 namespace fs = std::filesystem;
 
@@ -95,9 +95,9 @@ Table readTable(const std::string& dir, const std::string& prefix, const std::st
     t.source = txt.string();
     forEachRow(t.source, [&](int line, const std::vector<std::string>& f) {
       if (f.size() < columns)
-        throwInputError(t.source, line,
-                        "expected " + std::to_string(columns) + " numbers, got " +
-                            std::to_string(f.size()));
+        throwInputError(
+            t.source, line,
+            "expected " + std::to_string(columns) + " numbers, got " + std::to_string(f.size()));
       std::vector<double> row;
       for (size_t i = 0; i < f.size(); ++i)
         row.push_back(parseNumber(f[i], t.source, line, "column " + std::to_string(i + 1)));
@@ -107,8 +107,9 @@ Table readTable(const std::string& dir, const std::string& prefix, const std::st
     return t;
   }
   if (!fs::is_regular_file(mat, ec))
-    throwInputError(dir, 0, "neither " + txt.filename().string() + " nor " +
-                                mat.filename().string() + " (for the " + name + " table)");
+    throwInputError(dir, 0,
+                    "neither " + txt.filename().string() + " nor " + mat.filename().string() +
+                        " (for the " + name + " table)");
   t.source = mat.string() + " variable " + name;
   t.rows = readMatMatrix(mat.string(), name);
   for (size_t r = 0; r < t.rows.size(); ++r) {
@@ -148,9 +149,9 @@ int tableId(const Table& t, size_t k, size_t column, const char* field) {
   if (!(std::abs(v) < 1e9) || v != std::floor(v)) {
     char value[40];
     std::snprintf(value, sizeof value, "%.17g", v);
-    throwInputError(t.source, t.lines[k],
-                    std::string("field '") + field + "': expected an integer id (|id| < 1e9), got " +
-                        value);
+    throwInputError(
+        t.source, t.lines[k],
+        std::string("field '") + field + "': expected an integer id (|id| < 1e9), got " + value);
   }
   return static_cast<int>(v);
 }

@@ -254,8 +254,7 @@ void readUwb(const IniFile& ini, const std::string& path, Scenario& s) {
   for (const auto& key : ini.keys("uwb"))
     if (key.rfind("tag_", 0) == 0) {
       const int id = parseId(key.substr(4), path, ini.lineOf("uwb", key), key);
-      if (id == 0)
-        throwInputError(path, ini.lineOf("uwb", key), "tag 0 is the robot's 'tag' key");
+      if (id == 0) throwInputError(path, ini.lineOf("uwb", key), "tag 0 is the robot's 'tag' key");
       const auto t = numbers(ini, "uwb", key, 3);
       u.extra_tags[id] = {t[0], t[1], t[2]};
     }

@@ -206,8 +206,9 @@ void simulateImu(const Scenario& s, const TrajectorySampler& robot, Rng& rng_imu
   const double dt = 1.0 / s.imu.rate;
   const double h = 1e-4;  // differentiation step [s]
   auto velocity = [&](double t) {
-    return Eigen::Vector2d((robot.pose(t + h).head<2>() - robot.pose(std::max(t - h, 0.0)).head<2>()) /
-                           (t - h < 0.0 ? h : 2.0 * h));
+    return Eigen::Vector2d(
+        (robot.pose(t + h).head<2>() - robot.pose(std::max(t - h, 0.0)).head<2>()) /
+        (t - h < 0.0 ? h : 2.0 * h));
   };
   Eigen::Vector2d accel_bias = Eigen::Vector2d::Zero();
   double gyro_bias = 0.0;
@@ -387,14 +388,12 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
   describeTags(uwb, m);
   if (!simulate_tag0) {
     m.tags[0] = own->tag_on_robot;
-    m.comments.push_back("Tag 0's ranges are the recording's own; tags " +
-                         [&] {
-                           std::string ids;
-                           for (const auto& [id, p] : uwb.extra_tags)
-                             ids += (ids.empty() ? "" : ", ") + std::to_string(id);
-                           return ids;
-                         }() +
-                         " are simulated");
+    m.comments.push_back("Tag 0's ranges are the recording's own; tags " + [&] {
+      std::string ids;
+      for (const auto& [id, p] : uwb.extra_tags)
+        ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+      return ids;
+    }() + " are simulated");
   }
   m.bounds_range_sigma = uwb.sigma;
   const std::string manifest = writeManifest(out_dir, m);

@@ -17,10 +17,10 @@ namespace uwbloc::eval {
 namespace {
 
 struct Sample {
-  int group = 0;                  ///< index into the groups
-  int anchor = 0;                 ///< index into the anchors
-  Eigen::Vector3d tag;            ///< tag position from the reference [m]
-  double measured = 0.0;          ///< [m]
+  int group = 0;          ///< index into the groups
+  int anchor = 0;         ///< index into the anchors
+  Eigen::Vector3d tag;    ///< tag position from the reference [m]
+  double measured = 0.0;  ///< [m]
 };
 
 // measured - ((1 + s) |anchor - tag| + b), anchor x, y free, z fixed.
@@ -99,10 +99,9 @@ CalibrationResult calibrateRanges(const std::vector<const data::Dataset*>& datas
   // Start: each group's bias is the median residual; the loss scale from the residuals' MAD.
   auto residual = [&](const Sample& s, const std::vector<Eigen::Vector3d>& anchors,
                       const std::vector<double>& bias, const std::vector<double>& scale) {
-    return s.measured -
-           ((1.0 + scale[static_cast<size_t>(s.group)]) *
-                (anchors[static_cast<size_t>(s.anchor)] - s.tag).norm() +
-            bias[static_cast<size_t>(s.group)]);
+    return s.measured - ((1.0 + scale[static_cast<size_t>(s.group)]) *
+                             (anchors[static_cast<size_t>(s.anchor)] - s.tag).norm() +
+                         bias[static_cast<size_t>(s.group)]);
   };
   std::vector<Eigen::Vector3d> anchors;
   for (const auto& a : out.anchors) anchors.push_back(a.position);
@@ -123,10 +122,9 @@ CalibrationResult calibrateRanges(const std::vector<const data::Dataset*>& datas
   for (const auto& s : samples) {
     const auto g = static_cast<size_t>(s.group);
     const auto a = static_cast<size_t>(s.anchor);
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<RangeResidual, 1, 2, 1, 1>(
-            new RangeResidual{s.tag, anchors[a].z(), s.measured}),
-        new ceres::HuberLoss(2.0 * sigma0), xy[a].data(), &bias[g], &scale[g]);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<RangeResidual, 1, 2, 1, 1>(
+                                 new RangeResidual{s.tag, anchors[a].z(), s.measured}),
+                             new ceres::HuberLoss(2.0 * sigma0), xy[a].data(), &bias[g], &scale[g]);
   }
   for (size_t a = 0; a < xy.size(); ++a)
     if (problem.HasParameterBlock(xy[a].data()) && !free.count(out.anchors[a].id))
@@ -166,8 +164,9 @@ CalibrationResult calibrateRanges(const std::vector<const data::Dataset*>& datas
     b.samples = static_cast<long>(per_group[g].size());
     out.biases.push_back(b);
     if (b.samples < 30)
-      out.notes.push_back("anchor " + std::to_string(b.anchor_id) + (b.tag_id ? ", tag " + std::to_string(*b.tag_id) : "") +
-                          ": only " + std::to_string(b.samples) + " ranges; its bias is uncertain");
+      out.notes.push_back("anchor " + std::to_string(b.anchor_id) +
+                          (b.tag_id ? ", tag " + std::to_string(*b.tag_id) : "") + ": only " +
+                          std::to_string(b.samples) + " ranges; its bias is uncertain");
   }
   std::sort(out.biases.begin(), out.biases.end(), [](const auto& x, const auto& y) {
     return std::pair(x.anchor_id, x.tag_id.value_or(-1)) <

@@ -159,8 +159,8 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
         << v(m.metrics.coverage) << "," << v(m.metrics.rmse_x) << "," << v(m.metrics.rmse_y) << ","
         << v(m.metrics.rmse_2d) << "," << v(m.rmse_2d_std) << "," << v(m.metrics.mae_2d) << ","
         << v(m.metrics.median_2d) << "," << v(m.metrics.p95_2d) << "," << v(m.metrics.max_2d) << ","
-        << v(m.metrics.rmse_yaw_deg) << "," << v(m.ms_per_step) << "," << v(m.realtime_factor) << "," << totalRejected(m) << ","
-        << m.resets << "\n";
+        << v(m.metrics.rmse_yaw_deg) << "," << v(m.ms_per_step) << "," << v(m.realtime_factor)
+        << "," << totalRejected(m) << "," << m.resets << "\n";
   }
   return out.str();
 }
@@ -186,8 +186,8 @@ void tableRows(std::ostringstream& out, const std::vector<MethodSummary>& method
         << num(m.worstRmse(), 7, 3) << " " << num(m.metrics.mae_2d, 7, 3) << " "
         << num(m.metrics.median_2d, 7, 3) << " " << num(m.metrics.p95_2d, 7, 3) << " "
         << num(m.metrics.max_2d, 7, 3) << " " << num(m.metrics.rmse_yaw_deg, 7, 2) << " "
-        << num(m.ms_per_step, 9, 4) << " "
-        << num(m.realtime_factor, 8, 0) << " " << std::setw(7) << totalRejected(m) << "\n";
+        << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " " << std::setw(7)
+        << totalRejected(m) << "\n";
   }
 }
 
@@ -277,9 +277,9 @@ std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSu
   out << buf;
   for (const auto& w : dataset.warnings) out << "WARNING: " << w << "\n";
   std::snprintf(buf, sizeof buf,
-                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %7s %9s %8s %7s\n",
-                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst",
-                "mae", "median", "p95", "max", "yaw_deg", "ms/step", "xRT", "reject");
+                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %7s %9s %8s %7s\n", "method",
+                "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst", "mae",
+                "median", "p95", "max", "yaw_deg", "ms/step", "xRT", "reject");
   out << buf;
   tableRows(out, methods);
   for (const auto& m : methods) {

@@ -107,8 +107,8 @@ std::optional<uwb::Anchor> MobileAnchors::anchor(int id, double t) const {
   const auto it = nodes_.find(id - uwb::kMobileAnchorBase);
   if (it == nodes_.end() || !it->second.still || t - it->second.last_fix_t > 2.0)
     return std::nullopt;
-  return uwb::Anchor{id, Eigen::Vector3d(it->second.mean.x(), it->second.mean.y(),
-                                         it->second.height)};
+  return uwb::Anchor{id,
+                     Eigen::Vector3d(it->second.mean.x(), it->second.mean.y(), it->second.height)};
 }
 
 bool RangeFrontEnd::judge(AcceptedRange& r) {

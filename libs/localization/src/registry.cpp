@@ -1,17 +1,17 @@
 #include "uwbloc/localization/registry.hpp"
 
+#include "uwbloc/localization/methods/federated_ekf.hpp"
 #include "uwbloc/localization/methods/graph_smoother.hpp"
 #include "uwbloc/localization/methods/multilateration_estimator.hpp"
 #include "uwbloc/localization/methods/odometry_estimator.hpp"
+#include "uwbloc/localization/methods/point_filters.hpp"
 #include "uwbloc/localization/methods/uwb_akf.hpp"
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
+#include "uwbloc/localization/methods/uwb_ins.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
 #include "uwbloc/localization/methods/uwb_multitag.hpp"
-#include "uwbloc/localization/methods/uwb_ins.hpp"
 #include "uwbloc/localization/methods/uwb_shkf.hpp"
-#include "uwbloc/localization/methods/federated_ekf.hpp"
-#include "uwbloc/localization/methods/point_filters.hpp"
 
 namespace uwbloc::loc {
 

@@ -33,9 +33,9 @@ std::optional<MultitagFix> gaussNewton(const std::vector<AcceptedRange>& epoch, 
       const double e = (r.measurement.range - dist) / sd;
       const double w = std::abs(e) <= huber ? 1.0 : huber / std::abs(e);
       // d(dist)/d(x, y, theta); the tag moves with theta by R'(theta) l.
-      const Eigen::Vector3d j(d.x() / dist, d.y() / dist,
-                              (d.x() * (-s * l.x() - c * l.y()) + d.y() * (c * l.x() - s * l.y())) /
-                                  dist);
+      const Eigen::Vector3d j(
+          d.x() / dist, d.y() / dist,
+          (d.x() * (-s * l.x() - c * l.y()) + d.y() * (c * l.x() - s * l.y())) / dist);
       const Eigen::Vector3d js = j / sd;
       h += w * js * js.transpose();
       g += w * js * e;
@@ -204,7 +204,8 @@ bool UwbMultitag::filter(double t, const MultitagFix& fix, const Eigen::Matrix3d
   const Eigen::Matrix<double, 6, 3> k = p_.leftCols<3>() * ldlt.solve(Eigen::Matrix3d::Identity());
   x_ += k * innovation;
   x_(2) = wrapAngle(x_(2));
-  const Eigen::Matrix<double, 6, 6> ikh = Eigen::Matrix<double, 6, 6>::Identity() - k * Eigen::Matrix<double, 3, 6>::Identity();
+  const Eigen::Matrix<double, 6, 6> ikh =
+      Eigen::Matrix<double, 6, 6>::Identity() - k * Eigen::Matrix<double, 3, 6>::Identity();
   p_ = ikh * p_ * ikh.transpose() + k * r * k.transpose();
   return true;
 }

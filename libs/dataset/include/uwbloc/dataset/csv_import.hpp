@@ -32,7 +32,7 @@ namespace uwbloc::data {
 struct CsvImportRequest {
   std::string ranges, anchors, odometry, imu, reference, scans;
   std::string map;  ///< an occupancy map file (a .gridmap.gz or an image) the manifest names
-  std::string odometry_kind = "auto";  ///< auto | increments | poses | velocities
+  std::string odometry_kind = "auto";   ///< auto | increments | poses | velocities
   std::map<int, Eigen::Vector3d> tags;  ///< tag id -> position on the robot (x y z) [m]
   std::optional<double> tag_height;     ///< tag 0's height when `tags` is empty [m]
   Eigen::Vector3d scan_pose = Eigen::Vector3d::Zero();  ///< scanner on the robot (x, y, yaw)

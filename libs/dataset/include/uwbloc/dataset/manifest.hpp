@@ -88,7 +88,7 @@ struct Manifest {
   std::string rawlog;
   std::string ground_truth;
   GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
-  double gt_max_gap = 1.0;  ///< estimates are scored only between GT samples this close [s]
+  double gt_max_gap = 1.0;        ///< estimates are scored only between GT samples this close [s]
   bool reference_heading = true;  ///< the reference's heading is measured (scored as yaw error)
   std::string map;
   std::string range_features;

@@ -46,7 +46,7 @@ struct UwbSimSpec {
   /// More tags on the robot ([uwb] tag_<id> = x y z; id 1 is the [tag2] mobile node's): each
   /// ranges to every anchor at the same instants as tag 0.
   std::map<int, Eigen::Vector3d> extra_tags;
-  double max_range = 60.0;                           ///< no ranges beyond this [m]
+  double max_range = 60.0;  ///< no ranges beyond this [m]
 };
 
 struct OdometrySimSpec {

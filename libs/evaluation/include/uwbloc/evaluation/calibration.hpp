@@ -27,7 +27,7 @@ struct CalibrationOptions {
 };
 
 struct CalibrationResult {
-  std::vector<uwb::Anchor> anchors;   ///< the anchors, free ones estimated
+  std::vector<uwb::Anchor> anchors;  ///< the anchors, free ones estimated
   std::vector<data::RangeBias> biases;
   std::map<int, double> anchor_moved;  ///< free anchor -> distance moved in x, y [m]
   long samples = 0;                    ///< ranges with a reference pose

@@ -26,8 +26,8 @@ enum class NlosUse {
   kReject,   ///< drop the range when P(NLOS) >= nlos_reject
 };
 constexpr std::array<EnumName<NlosUse>, 3> enumNames(NlosUse) {
-  return {{{NlosUse::kWeight, "weight"}, {NlosUse::kCorrect, "correct"},
-           {NlosUse::kReject, "reject"}}};
+  return {
+      {{NlosUse::kWeight, "weight"}, {NlosUse::kCorrect, "correct"}, {NlosUse::kReject, "reject"}}};
 }
 
 /// The range std a method starts from when `sigma=auto` and the data has not told it yet [m].
@@ -46,7 +46,8 @@ struct RangeFrontEndParams {
   double nlos_reject = 0.9;    ///< P(NLOS) at which nlos_use=reject drops a range [-]
   bool mobile_anchors = true;  ///< a still mobile node serves as a temporary anchor
   int mobile_window = 20;      ///< the node's last fixes its stillness is judged on
-  AutoDouble mobile_var;       ///< per-axis variance under which it is still [m^2]; auto: 4x its fixes' own
+  AutoDouble
+      mobile_var;  ///< per-axis variance under which it is still [m^2]; auto: 4x its fixes' own
 
   /// The fixed std, or the starting one when auto.
   double sigmaValue() const { return sigma.value.value_or(kStartRangeSigma); }

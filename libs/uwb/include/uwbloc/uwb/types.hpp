@@ -15,9 +15,9 @@ struct Anchor {
 
 /// One two-way range from the robot's tag to one anchor.
 struct Range {
-  double t = 0.0;      ///< timestamp [s]
-  int anchor_id = 0;   ///< which anchor answered (>= kMobileAnchorBase: another tag)
-  int tag_id = 0;      ///< which tag measured
+  double t = 0.0;     ///< timestamp [s]
+  int anchor_id = 0;  ///< which anchor answered (>= kMobileAnchorBase: another tag)
+  int tag_id = 0;     ///< which tag measured
   /// The tag is on the robot (tag_on_robot says where); otherwise it is a mobile node. Readers
   /// set it for tag 0; a manifest's [tag] tag_<id> keys name the robot's other tags.
   bool on_robot = true;

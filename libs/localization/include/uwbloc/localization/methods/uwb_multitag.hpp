@@ -29,8 +29,8 @@ namespace uwbloc::loc {
 
 struct UwbMultitagParams {
   RangeFrontEndParams front;
-  AutoDouble epoch_window;     ///< ranges within this span form one epoch [s]
-  double huber = 2.0;          ///< Huber threshold on residual / sigma
+  AutoDouble epoch_window;  ///< ranges within this span form one epoch [s]
+  double huber = 2.0;       ///< Huber threshold on residual / sigma
   int max_iterations = 15;
   double restart_after = 1.0;  ///< start afresh when the last pose is older than this [s]
   bool smooth = true;          ///< filter the fixes (else: each epoch's fix as it is)
@@ -42,7 +42,8 @@ struct UwbMultitagParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
-    v("window", epoch_window, "epoch window [s], or auto (one round of ranges from the data's rate)");
+    v("window", epoch_window,
+      "epoch window [s], or auto (one round of ranges from the data's rate)");
     v("huber", huber, "Huber threshold on |residual| / sigma");
     v("iterations", max_iterations, "Gauss-Newton iterations at most");
     v("restart_after", restart_after,
