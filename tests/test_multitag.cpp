@@ -6,6 +6,7 @@
 #include <Eigen/LU>
 #include <cmath>
 #include <random>
+#include <tuple>
 
 #include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
@@ -326,6 +327,49 @@ TEST(MobileNode, TheCartHelpsInTheCorridor) {
     EXPECT_LT(with.metrics.rmse_2d, 0.9 * without.metrics.rmse_2d) << m;
     EXPECT_EQ(without.rejected.count("mobile_anchor_moving"), 0u) << m;
   }
+}
+
+}  // namespace
+}  // namespace uwbloc
+
+namespace uwbloc {
+namespace {
+
+// Static ranging at known distances, in the Hanyang static layout: the error's offset and scale
+// per condition and group are recovered; an empty file and corrupt rows are reported, not fatal.
+TEST(Calibration, StaticRangingFitsOffsetAndScale) {
+  const auto dir = test::scratchDir();
+  std::mt19937 rng(2);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  const std::string header = "timestamp,Distance,poll_tx_ts,poll_rx_ts,resp_tx_ts,resp_rx_ts\n";
+  for (const auto& [cond, offset, scale] :
+       {std::tuple{"LOS", 0.05, 0.004}, std::tuple{"NLOS", 0.20, 0.003}}) {
+    const auto group = dir / cond / "height_100.0cm";
+    std::filesystem::create_directories(group);
+    for (int d = 2; d <= 40; d += 2) {
+      std::string text = header;
+      for (int k = 0; k < 50; ++k)
+        text += "1.0," + std::to_string(d * (1.0 + scale) + offset + noise(rng)) + ",1,2,3,4\n";
+      text += "1.0,,1,2,3,4\n";  // a corrupt row
+      test::writeText(group / (std::to_string(d) + "m.csv"), text);
+    }
+    test::writeText(group / "42m.csv", "");  // an empty file
+  }
+  const auto report = eval::fitStaticRanging(dir.string());
+  ASSERT_EQ(report.fits.size(), 2u);
+  for (const auto& f : report.fits) {
+    const bool los = f.condition == "LOS";
+    EXPECT_EQ(f.files, 20);
+    EXPECT_EQ(f.ranges, 1000);
+    EXPECT_NEAR(f.offset, los ? 0.05 : 0.20, 0.01) << f.condition;
+    EXPECT_NEAR(f.scale, los ? 0.004 : 0.003, 0.0005) << f.condition;
+    EXPECT_NEAR(f.sigma, 0.05, 0.006) << f.condition;
+  }
+  const std::string text = eval::formatStaticRanging(report);
+  EXPECT_NE(text.find("42m.csv: no range (empty file)"), std::string::npos) << text;
+  EXPECT_NE(text.find("20 rows with an empty or corrupt field skipped, in 20 files"),
+            std::string::npos)
+      << text;
 }
 
 }  // namespace

@@ -169,7 +169,7 @@ class CalibrateCommand : public Command {
 
  private:
   std::vector<std::string> manifests_;
-  std::string out_, data_dir_, per_ = "link", free_anchors_;
+  std::string out_, data_dir_, per_ = "link", free_anchors_, static_ranging_;
   bool scale_ = false;
 };
 

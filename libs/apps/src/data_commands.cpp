@@ -307,8 +307,12 @@ void CalibrateCommand::declare(CLI::App& parser) {
       "noise, and the positions of anchors marked unknown. Writes anchors.csv and bias.csv, which "
       "a manifest names with [anchors] anchors_csv and bias_csv");
   auto* cmd = subcommand_;
-  cmd->add_option("manifests", manifests_, "dataset manifests (dataset.ini) with a reference")
-      ->required();
+  cmd->add_option("manifests", manifests_, "dataset manifests (dataset.ini) with a reference");
+  cmd->add_option("--static-ranging", static_ranging_,
+                  "instead: a folder of static ranging at known distances (<condition>/<group>/"
+                  "<D>m.csv, the Hanyang static layout, e.g. hanyang_outdoor_uwb/static): the "
+                  "range error as offset + scale x distance per condition and group; writes "
+                  "range_error_fit.csv");
   cmd->add_option("--out,-o", out_, "output folder")->required();
   cmd->add_option("--per", per_, "one bias per link (anchor and tag) or per anchor")
       ->check(CLI::IsMember({"link", "anchor"}))
@@ -321,6 +325,25 @@ void CalibrateCommand::declare(CLI::App& parser) {
 
 int CalibrateCommand::run() {
   const std::string data_dir = data::resolveDataDir(data_dir_);
+  if (!static_ranging_.empty()) {
+    const auto report =
+        eval::fitStaticRanging(data::resolveInputPath(static_ranging_, data_dir));
+    data::ensureDirectory(out_);
+    std::string csv = "condition,group,files,ranges,offset,scale,sigma,min_distance,max_distance\n";
+    char buf[256];
+    for (const auto& f : report.fits) {
+      std::snprintf(buf, sizeof buf, "%s,%s,%d,%ld,%.5f,%.7f,%.5f,%g,%g\n", f.condition.c_str(),
+                    f.group.c_str(), f.files, f.ranges, f.offset, f.scale, f.sigma,
+                    f.min_distance, f.max_distance);
+      csv += buf;
+    }
+    data::writeFileAtomic((std::filesystem::path(out_) / "range_error_fit.csv").string(), csv);
+    std::cout << eval::formatStaticRanging(report) << "Written: " << out_
+              << "/range_error_fit.csv\n";
+    return report.fits.empty() ? kNoResult : kSuccess;
+  }
+  if (manifests_.empty())
+    throw data::InputError("calibrate: give dataset manifests, or --static-ranging FOLDER");
   std::vector<data::Dataset> datasets;
   for (const auto& m : manifests_) {
     datasets.push_back(data::loadDataset(data::resolveInputPath(m, data_dir), data_dir, false));

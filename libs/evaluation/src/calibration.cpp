@@ -2,6 +2,10 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/QR>
+#include <filesystem>
+#include <regex>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,6 +13,7 @@
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
@@ -174,6 +179,101 @@ CalibrationResult calibrateRanges(const std::vector<const data::Dataset*>& datas
   });
   if (!free.empty() && !options.scale)
     out.notes.push_back("anchor z kept as given (a planar robot hardly observes it)");
+  return out;
+}
+
+StaticRangingReport fitStaticRanging(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw data::InputError(dir + ": folder not found");
+  static const std::regex file_name(R"(([0-9]+(\.[0-9]+)?)m\.csv)");
+  std::map<std::pair<std::string, std::string>, std::vector<std::pair<double, std::string>>> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir, ec)) {
+    std::smatch m;
+    const std::string name = e.path().filename().string();
+    if (!e.is_regular_file() || !std::regex_match(name, m, file_name)) continue;
+    const fs::path group = e.path().parent_path();
+    files[{group.parent_path().filename().string(), group.filename().string()}].emplace_back(
+        std::stod(m[1].str()), e.path().string());
+  }
+  if (files.empty()) throw data::InputError(dir + ": no <distance>m.csv file below it");
+  StaticRangingReport report;
+  for (auto& [key, list] : files) {
+    std::sort(list.begin(), list.end());
+    std::vector<double> d, med;
+    std::vector<std::pair<double, double>> all;  // (true distance, error)
+    DistanceErrorFit fit;
+    fit.condition = key.first;
+    fit.group = key.second;
+    long incomplete = 0, files_with_incomplete = 0;
+    for (const auto& [distance, path] : list) {
+      data::TwrFile twr;
+      try {
+        twr = data::readHanyangStatic(path);
+      } catch (const data::InputError& e) {
+        report.problems.push_back(std::string(e.what()) + " (file skipped)");
+        continue;
+      }
+      if (twr.incomplete_rows > 0) {
+        incomplete += twr.incomplete_rows;
+        ++files_with_incomplete;
+      }
+      std::vector<double> err;
+      for (const auto& x : twr.exchanges)
+        if (std::isfinite(x.device_distance) && x.device_distance > 0.0)
+          err.push_back(x.device_distance - distance);
+      if (err.empty()) {
+        report.problems.push_back(path + ": no range (empty file)");
+        continue;
+      }
+      d.push_back(distance);
+      med.push_back(quantile(err, 0.5));
+      for (double v : err) all.emplace_back(distance, v);
+      ++fit.files;
+      fit.ranges += static_cast<long>(err.size());
+    }
+    if (incomplete > 0)
+      report.problems.push_back(key.first + "/" + key.second + ": " + std::to_string(incomplete) +
+                                " rows with an empty or corrupt field skipped, in " +
+                                std::to_string(files_with_incomplete) + " files");
+    if (fit.files == 0) continue;
+    fit.min_distance = d.front();
+    fit.max_distance = d.back();
+    if (d.size() >= 2 && d.back() > d.front()) {
+      Eigen::MatrixXd a(static_cast<long>(d.size()), 2);
+      Eigen::VectorXd b(static_cast<long>(d.size()));
+      for (size_t i = 0; i < d.size(); ++i) {
+        a(static_cast<long>(i), 0) = 1.0;
+        a(static_cast<long>(i), 1) = d[i];
+        b(static_cast<long>(i)) = med[i];
+      }
+      const Eigen::Vector2d x = a.colPivHouseholderQr().solve(b);
+      fit.offset = x(0);
+      fit.scale = x(1);
+    } else {
+      fit.offset = med.front();
+    }
+    std::vector<double> res;
+    for (const auto& [dist, e] : all) res.push_back(e - (fit.offset + fit.scale * dist));
+    fit.sigma = mad(res);
+    report.fits.push_back(fit);
+  }
+  return report;
+}
+
+std::string formatStaticRanging(const StaticRangingReport& r) {
+  std::string out;
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "%-8s %-16s %5s %7s %9s %10s %8s %11s\n", "cond", "group", "files",
+                "ranges", "offset_m", "scale", "sigma_m", "range_m");
+  out += buf;
+  for (const auto& f : r.fits) {
+    std::snprintf(buf, sizeof buf, "%-8s %-16s %5d %7ld %9.4f %10.6f %8.4f %5.0f-%-5.0f\n",
+                  f.condition.c_str(), f.group.c_str(), f.files, f.ranges, f.offset, f.scale,
+                  f.sigma, f.min_distance, f.max_distance);
+    out += buf;
+  }
+  for (const auto& p : r.problems) out += "note: " + p + "\n";
   return out;
 }
 

@@ -45,4 +45,24 @@ CalibrationResult calibrateRanges(const std::vector<const data::Dataset*>& datas
 /// The result as a table: one row per group (bias, scale, sigma, samples), then the free anchors.
 std::string formatCalibration(const CalibrationResult& result);
 
+/// Static ranging at known distances (the Hanyang static layout: <dir>/<condition>/<group>/
+/// <D>m.csv, e.g. LOS/height_100.0cm/10m.csv, each file the device's ranges at true distance D):
+/// per condition and group, the range error (device - true) fitted as offset + scale * D (least
+/// squares on each file's median error, so a file's outliers do not pull it), and the noise
+/// 1.4826 MAD of every range's residual to the fit.
+struct DistanceErrorFit {
+  std::string condition, group;  ///< e.g. "LOS", "height_100.0cm"
+  int files = 0;                 ///< files with ranges
+  long ranges = 0;
+  double offset = 0.0, scale = 0.0, sigma = 0.0;  ///< [m], [-], [m]
+  double min_distance = 0.0, max_distance = 0.0;  ///< [m]
+};
+struct StaticRangingReport {
+  std::vector<DistanceErrorFit> fits;
+  std::vector<std::string> problems;  ///< files that were empty or corrupt, or rows skipped
+};
+/// Throws InputError when `dir` holds no such file.
+StaticRangingReport fitStaticRanging(const std::string& dir);
+std::string formatStaticRanging(const StaticRangingReport& report);
+
 }  // namespace uwbloc::eval
