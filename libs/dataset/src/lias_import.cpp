@@ -188,7 +188,7 @@ std::vector<MocapRow> readMocap(const std::string& path, ImportSummary& summary)
     }
     const double norm = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (std::abs(norm - 1.0) > 0.05) return void(++summary.skipped["mocap_bad_quaternion"]);
-    if (!rows.empty() && *t <= rows.back().t) return void(++summary.skipped["mocap_out_of_order"]);
+    if (!rows.empty() && *t <= rows.back().t) return void(++summary.skipped["mocap_time_not_increasing"]);
     const Eigen::Quaterniond q(v[3] / norm, v[4] / norm, v[5] / norm, v[6] / norm);
     const Eigen::Matrix3d r = q.toRotationMatrix();
     rows.push_back({*t, Eigen::Vector3d(v[0], v[1], v[2]), std::atan2(r(1, 0), r(0, 0))});
