@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <set>
 
+#include "odometry_poses.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
@@ -147,11 +148,7 @@ std::vector<loc::OdometryIncrement> odometryIncrements(const std::vector<OdoRow>
     } else if (kind == "poses") {
       o.delta = relativePose(rows[k - 1].v, rows[k].v);
     } else {
-      const double dt = rows[k].t - rows[k - 1].t, v = rows[k - 1].v.x(), w = rows[k - 1].v.y();
-      const double a = w * dt;
-      o.delta = std::abs(a) < 1e-9
-                    ? Eigen::Vector3d(v * dt, 0.0, a)
-                    : Eigen::Vector3d(v / w * std::sin(a), v / w * (1.0 - std::cos(a)), a);
+      o.delta = arcIncrement(rows[k - 1].v.x(), rows[k - 1].v.y(), rows[k].t - rows[k - 1].t);
     }
     out.push_back(o);
   }

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "odometry_poses.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
@@ -134,14 +135,14 @@ ImportSummary importLibrsf(const std::string& file, const std::string& out_dir,
   for (const auto& r : p.ranges) events.emplace_back(r);
   for (size_t k = 1; k < p.odometry.size(); ++k) {
     const OdomRow& o = p.odometry[k];
-    const double dt = o.t - p.odometry[k - 1].t, a = o.w * dt;
+    const double dt = o.t - p.odometry[k - 1].t;
     loc::OdometryIncrement inc;
     inc.t = o.t;
-    // The arc of speed v and yaw rate w, plus the sideways slip v_y, over dt.
-    const Eigen::Vector2d arc = std::abs(a) < 1e-9 ? Eigen::Vector2d(o.v * dt, 0.0)
-                                                   : Eigen::Vector2d(o.v / o.w * std::sin(a),
-                                                                     o.v / o.w * (1 - std::cos(a)));
-    inc.delta << arc.x() - std::sin(a / 2) * o.vy * dt, arc.y() + std::cos(a / 2) * o.vy * dt, a;
+    // The arc of speed v and yaw rate w, plus the sideways slip v_y at the mid heading, over dt.
+    inc.delta = arcIncrement(o.v, o.w, dt);
+    const double mid = inc.delta.z() / 2;
+    inc.delta.x() -= std::sin(mid) * o.vy * dt;
+    inc.delta.y() += std::cos(mid) * o.vy * dt;
     events.emplace_back(inc);
   }
   loc::sortByTime(events);

@@ -3,12 +3,21 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <optional>
 #include <vector>
 
 #include "uwbloc/localization/events.hpp"
 
 namespace uwbloc::data {
+
+/// The motion of a robot driving at speed v [m/s] and yaw rate w [rad/s] for dt [s], in the
+/// frame it started in: the arc (x, y) and the turn.
+inline Eigen::Vector3d arcIncrement(double v, double w, double dt) {
+  const double a = w * dt;
+  if (std::abs(a) < 1e-9) return {v * dt, 0.0, a};
+  return {v / w * std::sin(a), v / w * (1.0 - std::cos(a)), a};
+}
 
 class OdometryFromPoses {
  public:

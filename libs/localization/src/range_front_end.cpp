@@ -87,8 +87,9 @@ void MobileAnchors::solve(Node& node) {
   Eigen::Vector2d mean, var, predicted = Eigen::Vector2d::Zero();
   for (const auto& v : node.fix_var) predicted += v;
   predicted /= static_cast<double>(w);
+  std::vector<double>& v = scratch_;  // reuses its storage
   for (int axis = 0; axis < 2; ++axis) {
-    std::vector<double> v;
+    v.clear();
     for (const auto& f : node.fixes) v.push_back(f(axis));
     std::nth_element(v.begin(), v.begin() + static_cast<long>(w / 2), v.end());
     const double median = v[w / 2];

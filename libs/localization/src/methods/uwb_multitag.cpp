@@ -15,7 +15,16 @@ namespace {
 std::optional<MultitagFix> gaussNewton(const std::vector<AcceptedRange>& epoch, double sigma,
                                        double huber, int max_iterations, Eigen::Vector3d pose,
                                        bool fix_heading) {
-  const int n = fix_heading ? 2 : 3;
+  // The normal matrix, with the heading's row and column replaced by identity when it is held:
+  // one fixed-size solve serves both cases (no allocation per iteration).
+  auto normal = [fix_heading](Eigen::Matrix3d h) {
+    if (fix_heading) {
+      h.row(2).setZero();
+      h.col(2).setZero();
+      h(2, 2) = 1.0;
+    }
+    return Eigen::LDLT<Eigen::Matrix3d>(h);
+  };
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
   double cost = 0.0;
   for (int it = 0; it <= max_iterations; ++it) {
@@ -42,11 +51,10 @@ std::optional<MultitagFix> gaussNewton(const std::vector<AcceptedRange>& epoch, 
       cost += w * e * e;
     }
     if (it == max_iterations) break;
-    Eigen::Vector3d step = Eigen::Vector3d::Zero();
-    const auto hn = h.topLeftCorner(n, n);
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(hn);
+    if (fix_heading) g.z() = 0.0;
+    const auto ldlt = normal(h);
     if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
-    step.head(n) = ldlt.solve(g.head(n));
+    const Eigen::Vector3d step = ldlt.solve(g);
     if (!step.allFinite()) return std::nullopt;
     pose += step;
     pose.z() = wrapAngle(pose.z());
@@ -56,11 +64,9 @@ std::optional<MultitagFix> gaussNewton(const std::vector<AcceptedRange>& epoch, 
   MultitagFix fix;
   fix.pose = pose;
   fix.rms_residual = sigma * std::sqrt(cost / static_cast<double>(epoch.size()));
-  const Eigen::MatrixXd hn = h.topLeftCorner(n, n);
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(hn);
+  const auto ldlt = normal(h);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return std::nullopt;
-  fix.covariance.setZero();
-  fix.covariance.topLeftCorner(n, n) = ldlt.solve(Eigen::MatrixXd::Identity(n, n));
+  fix.covariance = ldlt.solve(Eigen::Matrix3d::Identity());
   if (fix_heading) fix.covariance(2, 2) = M_PI * M_PI;
   return fix;
 }
@@ -156,9 +162,10 @@ Eigen::Matrix3d UwbMultitag::scaledCovariance(const MultitagFix& fix, size_t ran
     ++variance_count_;
   }
   if (variances_.size() < 5) return fix.covariance;
-  std::vector<double> v = variances_;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return fix.covariance * (std::max(v[v.size() / 2], 1e-6) / (sigma * sigma));
+  scratch_.assign(variances_.begin(), variances_.end());  // reuses its storage
+  const auto mid = scratch_.begin() + static_cast<long>(scratch_.size() / 2);
+  std::nth_element(scratch_.begin(), mid, scratch_.end());
+  return fix.covariance * (std::max(*mid, 1e-6) / (sigma * sigma));
 }
 
 bool UwbMultitag::filter(double t, const MultitagFix& fix, const Eigen::Matrix3d& r) {

@@ -138,6 +138,7 @@ class MobileAnchors {
   std::optional<double> variance_;
   double sigma_;
   std::map<int, Node> nodes_;
+  std::vector<double> scratch_;  ///< one axis of the fixes, for their median and MAD
 };
 
 class RangeFrontEnd {

@@ -87,6 +87,7 @@ class UwbMultitag : public EpochUwbEstimator {
   double last_t_ = -1e300;
   bool heading_seen_ = false;
   std::vector<double> variances_;  ///< recent epochs' residual variance (ring buffer)
+  std::vector<double> scratch_;    ///< their copy for the median
   size_t variance_count_ = 0;
   bool filtering_ = false;
   Eigen::Matrix<double, 6, 1> x_ = Eigen::Matrix<double, 6, 1>::Zero();
