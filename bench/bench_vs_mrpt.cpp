@@ -18,6 +18,7 @@
 
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 
 namespace fs = std::filesystem;
@@ -48,7 +49,8 @@ std::string config(const fs::path& dir, int particles) {
 // ro-localization works in the beacons' frame; `origin` receives the start pose it states there
 // ([OdometryEstimation] odometry_X/Y/PHI), the origin of the ground truth's (and our) frame.
 std::string roConfig(int particles, Eigen::Vector3d& origin) {
-  const std::string shipped = "/usr/share/mrpt/config_files/ro-localization/UWB_localization_demo.ini";
+  const std::string shipped =
+      "/usr/share/mrpt/config_files/ro-localization/UWB_localization_demo.ini";
   std::ifstream in(shipped);
   if (!in) return {};
   std::ostringstream out;
@@ -57,8 +59,9 @@ std::string roConfig(int particles, Eigen::Vector3d& origin) {
   for (std::string line; std::getline(in, line);) {
     std::smatch m;
     if (std::regex_search(line, m, start))
-      origin(m[1] == "X" ? 0 : m[1] == "Y" ? 1 : 2) =
-          std::stod(m[2]) * (m[1] == "PHI" ? M_PI / 180.0 : 1.0);
+      origin(m[1] == "X"   ? 0
+             : m[1] == "Y" ? 1
+                           : 2) = std::stod(m[2]) * (m[1] == "PHI" ? M_PI / 180.0 : 1.0);
     if (line.rfind("sampleSize=", 0) == 0) line = "sampleSize=" + std::to_string(particles);
     if (line.rfind("logOutput_dir=", 0) == 0) line = "logOutput_dir=";
     if (line.rfind("3DSceneFrequency=", 0) == 0) line = "3DSceneFrequency=-1";
@@ -106,9 +109,10 @@ struct MrptLog {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
 };
 
-// Runs `command` (which writes `log_path`) `runs` times and scores every run.
+// Runs `command` (which writes `log_path`) `runs` times and scores every run. The first run's
+// path is saved as `tum_path` (TUM, our frame), for `uwbloc evaluate`.
 Row runMrpt(const data::Dataset& ds, const std::string& command, const fs::path& log_path,
-            const MrptLog& fmt, int runs) {
+            const MrptLog& fmt, int runs, const fs::path& tum_path) {
   Row row;
   const Eigen::Rotation2Dd to_ours(-fmt.origin.z());
   for (int r = 0; r < runs; ++r) {
@@ -138,6 +142,7 @@ Row runMrpt(const data::Dataset& ds, const std::string& command, const fs::path&
         traj.push_back(e);
       }
     }
+    if (r == 0) data::writeFileAtomic(tum_path.string(), eval::formatTrajectoryTum(traj));
     row.add(eval::computeMetrics(eval::associate(traj, ds.ground_truth), traj, ds.ground_truth),
             n_done ? ms / n_done : 0.0);
   }
@@ -157,7 +162,8 @@ Row runRoLocalization(const data::Dataset& ds, const fs::path& dir, int particle
   }
   data::writeFileAtomic((dir / "ro.ini").string(), cfg);
   return runMrpt(ds, "cd " + dir.string() + " && ro-localization ro.ini > ro_log.txt 2>&1",
-                 dir / "ro_log.txt", fmt, runs);
+                 dir / "ro_log.txt", fmt, runs,
+                 dir / ("ro_localization_n" + std::to_string(particles) + ".tum"));
 }
 
 }  // namespace
@@ -181,9 +187,9 @@ int main(int argc, char** argv) {
                        std::regex(R"(PDF estimation: \(([-\d.]+),([-\d.]+),([-\d.]+)deg\))"),
                        [](long step) { return step; }};
   const Row mrpt = runMrpt(
-      ds, "pf-localization " + (dir / "pf.ini").string() + " > " + (dir / "log.txt").string() +
-              " 2>&1",
-      dir / "log.txt", pf_log, runs);
+      ds,
+      "pf-localization " + (dir / "pf.ini").string() + " > " + (dir / "log.txt").string() + " 2>&1",
+      dir / "log.txt", pf_log, runs, dir / "pf_localization.tum");
   mrpt.print("MRPT pf-localization");
   printOurs(ds, "lidar-mcl:n=" + std::to_string(particles), runs);
 

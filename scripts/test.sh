@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$SECONDS
-bash scripts/install-deps.sh
+UWBLOC_WITH_TEST_TOOLS=1 bash scripts/install-deps.sh
 bash scripts/build.sh -DBUILD_TESTS=ON -DBUILD_APPS=ON
 (cd build && ctest --output-on-failure --parallel "$(nproc)")
 echo "release suite done after $((SECONDS - start)) s; the sanitised suite next"

@@ -67,5 +67,5 @@ TEST(Metrics, QuantilesAndCoverage) {
 TEST(Report, FileLabelsAndTum) {
   EXPECT_EQ(eval::fileLabel("uwb-kf:q=0.1,sigma=0.2"), "uwb-kf_q-0.1_sigma-0.2");
   const std::string tum = eval::formatTrajectoryTum({at(1.5, 2.0, 3.0)});
-  EXPECT_EQ(tum, "1.500000 2.000000 3.000000 0 0 0 0.000000000 1.000000000\n");
+  EXPECT_EQ(tum, "1.500000000 2.000000 3.000000 0 0 0 0.000000000 1.000000000\n");
 }

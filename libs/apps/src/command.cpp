@@ -30,6 +30,8 @@ std::vector<std::unique_ptr<Command>> allCommands() {
   out.push_back(std::make_unique<BenchOptimizersCommand>());
   out.push_back(std::make_unique<NlosCommand>());
   out.push_back(std::make_unique<CalibrateCommand>());
+  out.push_back(std::make_unique<EvaluateCommand>());
+  out.push_back(std::make_unique<SweepCommand>());
   out.push_back(std::make_unique<MethodsCommand>());
   return out;
 }

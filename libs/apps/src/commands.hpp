@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,8 @@ class RunMethodsCommand : public Command {
   bool compare_;
   RunOptions options_;
   std::string methods_;
+  int jobs_ = 1;
+  bool plots_ = true;
 };
 
 /// `import FORMAT SOURCE --out DIR`: a public dataset into a rawlog, a reference and a manifest.
@@ -171,6 +174,35 @@ class CalibrateCommand : public Command {
   std::vector<std::string> manifests_;
   std::string out_, data_dir_, per_ = "link", free_anchors_, static_ranging_;
   bool scale_ = false;
+};
+
+/// `evaluate --reference REF --estimate A.tum ...`: trajectories from any source scored as
+/// compare scores its own (APE raw and aligned, RPE, heading), with evo's statistics.
+class EvaluateCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  std::string reference_, out_, data_dir_, align_ = "se2", delta_ = "1m",
+                                           association_ = "interpolate";
+  std::vector<std::string> estimates_;
+  std::optional<double> max_diff_;
+  bool plots_ = true;
+};
+
+/// `sweep plan` (one command per dataset x method x seed) and `sweep merge DIR...`.
+class SweepCommand : public Command {
+ public:
+  void declare(CLI::App& parser) override;
+  int run() override;
+
+ private:
+  CLI::App *plan_ = nullptr, *merge_ = nullptr;
+  std::string datasets_, methods_, out_, data_dir_, merge_out_ = "runs/sweep";
+  std::vector<std::string> sets_, dirs_;
+  int seeds_ = 1;
+  uint64_t seed_ = 1;
 };
 
 }  // namespace uwbloc::apps

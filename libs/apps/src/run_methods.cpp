@@ -3,10 +3,13 @@
 
 #include <CLI/CLI.hpp>
 #include <cctype>
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <map>
+#include <mutex>
 #include <sstream>
+#include <thread>
 
 #include "commands.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
@@ -142,6 +145,11 @@ void RunMethodsCommand::declare(CLI::App& parser) {
         return data::parseByteSize(text) ? std::string()
                                          : "expected a size such as 512M or 4G, got " + text;
       });
+  plots_ = compare_;
+  cmd->add_flag("--plots,!--no-plots", plots_,
+                std::string("write plots/ (PNG pictures of the trajectories, errors, range "
+                            "residuals and swarm spread) into the run directory (default: ") +
+                    (compare_ ? "on" : "off") + "); report.html is written either way");
   if (compare_) {
     methods_ = "all";
     cmd->add_option("--methods,-m", methods_,
@@ -150,6 +158,13 @@ void RunMethodsCommand::declare(CLI::App& parser) {
     cmd->add_option("--repeat", opt.repeat, "runs per method (seeds seed, seed+1, ...)")
         ->capture_default_str()
         ->check(CLI::Range(1, 1000));
+    jobs_ = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    cmd->add_option("--jobs,-j", jobs_,
+                    "runs (method x seed) at once, one thread each; the results are those of "
+                    "--jobs 1, bit for bit, apart from the timing fields (default: the core "
+                    "count). Each run holds its own copy of the estimator's memory.")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 256));
   } else {
     methods_ = "uwb-ekf";
     cmd->add_option("--method,-m", methods_,
@@ -186,13 +201,32 @@ int RunMethodsCommand::run() {
   const eval::RunDirectoryLock lock(out);
   const bool all = compare_ && methods_ == "all";
   const auto methods = compare_ ? splitMethods(methods_) : std::vector<std::string>{methods_};
-  std::vector<eval::MethodSummary> summaries;
+  std::vector<eval::MethodJob> jobs;
   for (const auto& m : runnableMethods(ds, opt, overrides, methods, all))
-    summaries.push_back(eval::evaluateMethod(ds, m, opt.repeat, opt.seed,
-                                             overridesFor(overrides, m), printProgress));
+    jobs.push_back({m, overridesFor(overrides, m)});
+  const auto wall_start = std::chrono::steady_clock::now();
+  // One thread: a progress bar per run. Several: a line per finished run, on a terminal only.
+  const eval::RunDoneFn run_done = [](long done, long total, const std::string& spec) {
+    if (!isatty(fileno(stderr))) return;
+    static std::mutex mutex;
+    const std::lock_guard<std::mutex> lock(mutex);
+    std::fprintf(stderr, "\r[%ld/%ld runs] %-40.40s", done, total, spec.c_str());
+    if (done == total) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  };
+  std::vector<eval::MethodSummary> summaries =
+      eval::evaluateMethods(ds, jobs, opt.repeat, opt.seed, jobs_, printProgress,
+                            jobs_ > 1 ? run_done : eval::RunDoneFn());
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   const eval::DatasetBounds bounds = eval::computeBounds(ds);
-  eval::writeRunDirectory(out, ds, summaries, {manifest, data_dir, opt.seed, opt.repeat, bounds});
+  eval::writeRunDirectory(
+      out, ds, summaries,
+      {manifest, data_dir, opt.seed, opt.repeat, bounds, wall_s, compare_ ? jobs_ : 1, plots_});
   std::cout << eval::formatTable(ds, summaries, bounds);
+  std::printf("Wall time of the %zu runs: %.2f s on %d thread(s)\n",
+              jobs.size() * static_cast<size_t>(opt.repeat), wall_s,
+              std::min<int>(jobs_, static_cast<int>(jobs.size()) * opt.repeat));
   std::cout << "Run directory: " << out << "\n";
   // No valid result at all is never a success; with --strict, neither is any flagged method.
   long flagged = 0, without_estimate = 0;

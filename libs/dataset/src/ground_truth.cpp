@@ -65,7 +65,9 @@ std::string formatTum(const std::vector<TimedPose>& poses) {
   std::string out;
   char buf[256];
   for (const auto& p : poses) {
-    std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", p.t, p.pose.x(), p.pose.y(),
+    // Times to the nanosecond: a Unix time's double keeps 17 digits, and a time rounded to the
+    // microsecond can miss the reference sample it was estimated at.
+    std::snprintf(buf, sizeof buf, "%.9f %.6f %.6f 0 0 0 %.9f %.9f\n", p.t, p.pose.x(), p.pose.y(),
                   std::sin(p.pose.z() / 2.0), std::cos(p.pose.z() / 2.0));
     out += buf;
   }

@@ -4,6 +4,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -17,7 +18,10 @@
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/evaluation/bounds.hpp"
+#include "uwbloc/evaluation/html_report.hpp"
 #include "uwbloc/evaluation/nlos_score.hpp"
+#include "uwbloc/evaluation/plots.hpp"
+#include "uwbloc/evaluation/trajectory_eval.hpp"
 
 namespace fs = std::filesystem;
 
@@ -49,7 +53,10 @@ DatasetBounds computeBounds(const data::Dataset& dataset) {
 std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory) {
   std::vector<data::TimedPose> poses;
   poses.reserve(trajectory.size());
-  for (const auto& p : trajectory) poses.push_back({p.t, p.pose});
+  // A pose whose heading the method does not observe is written with the identity quaternion
+  // (yaw 0), which `evaluate` reads as "no heading" when a whole file has it.
+  for (const auto& p : trajectory)
+    poses.push_back({p.t, {p.pose.x(), p.pose.y(), p.heading_valid ? p.pose.z() : 0.0}});
   return data::formatTum(poses);
 }
 
@@ -66,12 +73,16 @@ std::string fileLabel(const std::string& spec) {
   return out;
 }
 
-std::string formatMetricsJson(const data::Dataset& dataset,
-                              const std::vector<MethodSummary>& methods,
-                              const DatasetBounds& bounds) {
+namespace {
+
+nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
+                           const DatasetBounds& bounds) {
   nlohmann::json j;
   j["dataset"] = dataset.name;
   j["duration_s"] = number(dataset.duration());
+  j["events"] = dataset.events.size();
+  j["ground_truth_poses"] = dataset.ground_truth.size();
+  j["warnings"] = dataset.warnings;
   j["crlb_rmse"] = number(bounds.static_rmse);
   j["pcrb_rmse"] = number(bounds.posterior_rmse);
   j["pcrb_motion"] = bounds.motion;
@@ -104,6 +115,11 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     e["rmse_yaw_deg"] = number(m.metrics.rmse_yaw_deg);
     e["median_yaw_deg"] = number(m.metrics.median_yaw_deg);
     e["p95_yaw_deg"] = number(m.metrics.p95_yaw_deg);
+    e["rmse_2d_aligned"] = number(m.metrics.rmse_2d_aligned);
+    e["alignment"] = m.metrics.alignment;
+    e["rpe_delta"] = m.metrics.rpe_delta;
+    e["rpe_trans_rmse"] = number(m.metrics.rpe_trans_rmse);
+    e["rpe_rot_rmse_deg"] = number(m.metrics.rpe_rot_rmse_deg);
     e["ms_per_step"] = number(m.ms_per_step);
     e["realtime_factor"] = number(m.realtime_factor);
     e["efficiency_crlb"] = number(m.metrics.rmse_2d / bounds.static_rmse);
@@ -140,14 +156,23 @@ std::string formatMetricsJson(const data::Dataset& dataset,
     for (const auto& p : m.parameters) e["parameters"][p.key] = p.value;
     j["methods"].push_back(e);
   }
-  return j.dump(2) + "\n";
+  return j;
+}
+
+}  // namespace
+
+std::string formatMetricsJson(const data::Dataset& dataset,
+                              const std::vector<MethodSummary>& methods,
+                              const DatasetBounds& bounds) {
+  return metricsJson(dataset, methods, bounds).dump(2) + "\n";
 }
 
 std::string formatMetricsCsv(const data::Dataset& dataset,
                              const std::vector<MethodSummary>& methods) {
   std::ostringstream out;
   out << "dataset,method,runs,steps,coverage,rmse_x,rmse_y,rmse_2d,rmse_2d_std,mae_2d,"
-         "median_2d,p95_2d,max_2d,rmse_yaw_deg,ms_per_step,realtime_factor,rejected_total,resets\n";
+         "median_2d,p95_2d,max_2d,rmse_yaw_deg,ms_per_step,realtime_factor,rejected_total,resets,"
+         "rmse_2d_aligned,rpe_trans_rmse,rpe_rot_rmse_deg\n";
   // A metric that cannot be computed is an empty field, never "nan".
   auto v = [](double x) {
     std::ostringstream s;
@@ -160,80 +185,109 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
         << v(m.metrics.rmse_2d) << "," << v(m.rmse_2d_std) << "," << v(m.metrics.mae_2d) << ","
         << v(m.metrics.median_2d) << "," << v(m.metrics.p95_2d) << "," << v(m.metrics.max_2d) << ","
         << v(m.metrics.rmse_yaw_deg) << "," << v(m.ms_per_step) << "," << v(m.realtime_factor)
-        << "," << totalRejected(m) << "," << m.resets << "\n";
+        << "," << totalRejected(m) << "," << m.resets << "," << v(m.metrics.rmse_2d_aligned) << ","
+        << v(m.metrics.rpe_trans_rmse) << "," << v(m.metrics.rpe_rot_rmse_deg) << "\n";
   }
   return out.str();
 }
 
 namespace {
 
-// One row per method; undefined metrics (no estimate with ground truth) print as "-".
-void tableRows(std::ostringstream& out, const std::vector<MethodSummary>& methods) {
+using Json = nlohmann::json;
+
+// A number of metrics.json (null: not computed).
+double num(const Json& j, const char* key) {
+  const auto it = j.find(key);
+  return it == j.end() || !it->is_number() ? NAN : it->get<double>();
+}
+
+// A metrics.json object keyed by anchor id, in numeric order (JSON keeps keys as text).
+std::vector<std::pair<int, const Json*>> byAnchor(const Json& object) {
+  std::vector<std::pair<int, const Json*>> out;
+  for (auto it = object.begin(); it != object.end(); ++it)
+    out.emplace_back(std::stoi(it.key()), &it.value());
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return out;
+}
+
+std::string cell(double v, int width, int precision) {
+  char text[32];
+  if (std::isfinite(v))
+    std::snprintf(text, sizeof text, "%*.*f", width, precision, v);
+  else
+    std::snprintf(text, sizeof text, "%*s", width, "-");  // undefined: no estimate to score
+  return text;
+}
+
+long totalRejected(const Json& m) {
+  long n = 0;
+  for (const auto& count : m.value("rejected", Json::object())) n += count.get<long>();
+  return n;
+}
+
+// One row per method.
+void tableRows(std::ostringstream& out, const Json& methods) {
   for (const auto& m : methods) {
-    // Undefined metrics (no estimate with ground truth) print as "-".
-    auto num = [](double v, int width, int precision) {
-      char cell[32];
-      if (std::isfinite(v))
-        std::snprintf(cell, sizeof cell, "%*.*f", width, precision, v);
-      else
-        std::snprintf(cell, sizeof cell, "%*s", width, "-");
-      return std::string(cell);
-    };
-    out << std::left << std::setw(22) << m.spec << std::right << " " << std::setw(4) << m.runs
-        << " " << std::setw(6) << m.metrics.steps << " " << num(m.metrics.coverage, 5, 2) << " "
-        << num(m.metrics.rmse_x, 7, 3) << " " << num(m.metrics.rmse_y, 7, 3) << " "
-        << num(m.metrics.rmse_2d, 7, 3) << " " << num(m.rmse_2d_std, 6, 3) << " "
-        << num(m.worstRmse(), 7, 3) << " " << num(m.metrics.mae_2d, 7, 3) << " "
-        << num(m.metrics.median_2d, 7, 3) << " " << num(m.metrics.p95_2d, 7, 3) << " "
-        << num(m.metrics.max_2d, 7, 3) << " " << num(m.metrics.rmse_yaw_deg, 7, 2) << " "
-        << num(m.ms_per_step, 9, 4) << " " << num(m.realtime_factor, 8, 0) << " " << std::setw(7)
-        << totalRejected(m) << "\n";
+    out << std::left << std::setw(22) << m["name"].get<std::string>() << std::right << " "
+        << std::setw(4) << m["runs"].get<int>() << " " << std::setw(6) << m["steps"].get<long>()
+        << " " << cell(num(m, "coverage"), 5, 2) << " " << cell(num(m, "rmse_x"), 7, 3) << " "
+        << cell(num(m, "rmse_y"), 7, 3) << " " << cell(num(m, "rmse_2d"), 7, 3) << " "
+        << cell(num(m, "rmse_2d_std"), 6, 3) << " " << cell(num(m, "rmse_2d_worst"), 7, 3) << " "
+        << cell(num(m, "mae_2d"), 7, 3) << " " << cell(num(m, "median_2d"), 7, 3) << " "
+        << cell(num(m, "p95_2d"), 7, 3) << " " << cell(num(m, "max_2d"), 7, 3) << " "
+        << cell(num(m, "rmse_2d_aligned"), 7, 3) << " " << cell(num(m, "rpe_trans_rmse"), 7, 3)
+        << " " << cell(num(m, "rmse_yaw_deg"), 7, 2) << " " << cell(num(m, "ms_per_step"), 9, 4)
+        << " " << cell(num(m, "realtime_factor"), 8, 0) << " " << std::setw(7) << totalRejected(m)
+        << "\n";
   }
 }
 
 // Efficiency against the Cramér-Rao bounds, and the NLOS detectors' scores.
-void boundsAndNlosLines(std::ostringstream& out, const data::Dataset& dataset,
-                        const std::vector<MethodSummary>& methods, const DatasetBounds& bounds) {
+void boundsAndNlosLines(std::ostringstream& out, const Json& j) {
   char buf[512];
-  if (std::isfinite(bounds.static_rmse)) {
+  const double crlb = num(j, "crlb_rmse"), pcrb = num(j, "pcrb_rmse");
+  if (std::isfinite(crlb)) {
     std::snprintf(buf, sizeof buf,
                   "Bounds: sqrt(mean static CRLB) %.4f m, sqrt(mean posterior CRLB, %s motion) "
                   "%.4f m. Efficiency = rmse_2d / bound:\n",
-                  bounds.static_rmse, bounds.motion.c_str(), bounds.posterior_rmse);
+                  crlb, j.value("pcrb_motion", std::string()).c_str(), pcrb);
     out << buf;
-    for (const auto& m : methods) {
-      std::snprintf(buf, sizeof buf, "  %-22s vs CRLB %6.2f   vs PCRB %6.2f\n", m.spec.c_str(),
-                    m.metrics.rmse_2d / bounds.static_rmse,
-                    m.metrics.rmse_2d / bounds.posterior_rmse);
+    for (const auto& m : j["methods"]) {
+      std::snprintf(buf, sizeof buf, "  %-22s vs CRLB %6.2f   vs PCRB %6.2f\n",
+                    m["name"].get<std::string>().c_str(), num(m, "rmse_2d") / crlb,
+                    num(m, "rmse_2d") / pcrb);
       out << buf;
     }
   }
-  for (const auto& m : methods) {
-    if (m.range_decisions.empty() || dataset.ground_truth.empty()) continue;
-    const auto sc = scoreNlos(dataset, m.range_decisions);
+  for (const auto& m : j["methods"]) {
+    if (!m.contains("nlos_detection")) continue;
+    const Json& pose = m["nlos_detection"]["pose"];
+    const Json& ray = m["nlos_detection"]["raycast"];
     std::snprintf(buf, sizeof buf,
                   "  %s NLOS detection (range error > 0.5 m vs ground truth: %ld bad, %ld good): "
                   "LiDAR-pose test recall %.3f, false alarm %.3f; map ray-cast recall %.3f, "
                   "false alarm %.3f\n",
-                  m.spec.c_str(), sc.pose.bad, sc.pose.good, sc.pose.recall(),
-                  sc.pose.false_alarm(), sc.raycast.recall(), sc.raycast.false_alarm());
+                  m["name"].get<std::string>().c_str(), pose["bad"].get<long>(),
+                  pose["good"].get<long>(), num(pose, "recall"), num(pose, "false_alarm"),
+                  num(ray, "recall"), num(ray, "false_alarm"));
     out << buf;
   }
 }
 
 // Rejections by reason and anchor, and other events, per method.
-void rejectionLines(std::ostringstream& out, const std::vector<MethodSummary>& methods) {
+void rejectionLines(std::ostringstream& out, const Json& methods) {
   for (const auto& m : methods) {
-    if (m.rejected.empty()) continue;
-    out << "  " << m.spec << " rejected:";
-    for (const auto& [reason, count] : m.rejected) out << " " << reason << "=" << count;
-    if (!m.rejected_by_anchor.empty()) {
+    if (m["rejected"].empty()) continue;
+    out << "  " << m["name"].get<std::string>() << " rejected:";
+    for (const auto& [reason, count] : m["rejected"].items())
+      out << " " << reason << "=" << count.get<long>();
+    if (!m["rejected_by_anchor"].empty()) {
       out << "  | by anchor:";
-      for (const auto& [anchor, reasons] : m.rejected_by_anchor) {
+      for (const auto& [anchor, reasons] : byAnchor(m["rejected_by_anchor"])) {
         out << " " << anchor << "{";
         bool first = true;
-        for (const auto& [reason, count] : reasons) {
-          out << (first ? "" : ",") << reason << "=" << count;
+        for (const auto& [reason, count] : reasons->items()) {
+          out << (first ? "" : ",") << reason << "=" << count.get<long>();
           first = false;
         }
         out << "}";
@@ -242,65 +296,78 @@ void rejectionLines(std::ostringstream& out, const std::vector<MethodSummary>& m
     out << "\n";
   }
   for (const auto& m : methods) {
-    if (m.estimated_noise.empty() && !m.estimated_range_sigma) continue;
-    out << "  " << m.spec << " estimated noise:";
-    if (m.estimated_range_sigma) {
-      char buf[64];
-      std::snprintf(buf, sizeof buf, " model sigma %.3f m;", *m.estimated_range_sigma);
+    if (!m.contains("estimated_noise")) continue;
+    out << "  " << m["name"].get<std::string>() << " estimated noise:";
+    char buf[96];
+    if (m.contains("estimated_range_sigma")) {
+      std::snprintf(buf, sizeof buf, " model sigma %.3f m;", num(m, "estimated_range_sigma"));
       out << buf;
     }
-    for (const auto& [anchor, n] : m.estimated_noise) {
-      char buf[96];
-      std::snprintf(buf, sizeof buf, " %d{bias %+.3f, sigma %.3f, n %ld}", anchor, n.bias, n.sigma,
-                    n.ranges);
+    for (const auto& [anchor, n] : byAnchor(m["estimated_noise"])) {
+      std::snprintf(buf, sizeof buf, " %d{bias %+.3f, sigma %.3f, n %ld}", anchor, num(*n, "bias"),
+                    num(*n, "sigma"), (*n)["ranges"].get<long>());
       out << buf;
     }
     out << "\n";
   }
   for (const auto& m : methods) {
-    if (m.events.empty()) continue;
-    out << "  " << m.spec << " events:";
-    for (const auto& [name, count] : m.events) out << " " << name << "=" << count;
+    if (m["events"].empty()) continue;
+    out << "  " << m["name"].get<std::string>() << " events:";
+    for (const auto& [name, count] : m["events"].items())
+      out << " " << name << "=" << count.get<long>();
     out << "\n";
   }
+}
+
+std::string tableFromJson(const Json& j) {
+  std::ostringstream out;
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "Dataset %s: %.1f s, %ld events, %ld ground-truth poses\n",
+                j["dataset"].get<std::string>().c_str(), num(j, "duration_s"),
+                j.value("events", 0L), j.value("ground_truth_poses", 0L));
+  out << buf;
+  for (const auto& w : j.value("warnings", Json::array()))
+    out << "WARNING: " << w.get<std::string>() << "\n";
+  std::snprintf(buf, sizeof buf,
+                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %7s %7s %7s %9s %8s %7s\n",
+                "method", "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst",
+                "mae", "median", "p95", "max", "aligned", "rpe_1m", "yaw_deg", "ms/step", "xRT",
+                "reject");
+  out << buf;
+  tableRows(out, j["methods"]);
+  for (const auto& m : j["methods"]) {
+    const std::string name = m["name"].get<std::string>();
+    const std::string flag = m["flag"].is_string() ? m["flag"].get<std::string>() : "";
+    if (flag == "no_estimate")
+      out << "FLAGGED: " << name << " produced no estimate that can be scored\n";
+    else if (flag == "low_coverage")
+      out << "FLAGGED: " << name << " covers only " << std::lround(100 * num(m, "coverage"))
+          << " % of the ground truth (under 50 %)\n";
+    // An NLOS model that could not judge a range did nothing to it: say so, not only count it.
+    if (const auto it = m["events"].find("nlos_no_powers"); it != m["events"].end())
+      out << "WARNING: " << name << ": its NLOS model judged none of " << it->get<long>()
+          << " ranges, which carry no received and first-path power (a range_features side "
+             "file gives them)\n";
+  }
+  out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
+         "samples with an estimate within 1 s; worst = the worst seed's rmse_2d; xRT = "
+         "real-time factor; yaw_deg = heading RMSE [deg] (- when the reference has no heading); "
+         "aligned = rmse_2d after the best rigid SE(2) alignment; rpe_1m = RMSE of the relative "
+         "pose error's translation over 1 m stretches of the reference path.\n";
+  boundsAndNlosLines(out, j);
+  rejectionLines(out, j["methods"]);
+  return out.str();
 }
 
 }  // namespace
 
 std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
                         const DatasetBounds& bounds) {
-  std::ostringstream out;
-  char buf[512];
-  std::snprintf(buf, sizeof buf, "Dataset %s: %.1f s, %zu events, %zu ground-truth poses\n",
-                dataset.name.c_str(), dataset.duration(), dataset.events.size(),
-                dataset.ground_truth.size());
-  out << buf;
-  for (const auto& w : dataset.warnings) out << "WARNING: " << w << "\n";
-  std::snprintf(buf, sizeof buf,
-                "%-22s %4s %6s %5s %7s %7s %7s %6s %7s %7s %7s %7s %7s %7s %9s %8s %7s\n", "method",
-                "runs", "steps", "cov", "rmse_x", "rmse_y", "rmse_2d", "±std", "worst", "mae",
-                "median", "p95", "max", "yaw_deg", "ms/step", "xRT", "reject");
-  out << buf;
-  tableRows(out, methods);
-  for (const auto& m : methods) {
-    const std::string flag = resultFlag(dataset, m);
-    if (flag == "no_estimate")
-      out << "FLAGGED: " << m.spec << " produced no estimate that can be scored\n";
-    else if (flag == "low_coverage")
-      out << "FLAGGED: " << m.spec << " covers only " << std::lround(100 * m.metrics.coverage)
-          << " % of the ground truth (under 50 %)\n";
-    // An NLOS model that could not judge a range did nothing to it: say so, not only count it.
-    if (const auto it = m.events.find("nlos_no_powers"); it != m.events.end())
-      out << "WARNING: " << m.spec << ": its NLOS model judged none of " << it->second
-          << " ranges, which carry no received and first-path power (a range_features side "
-             "file gives them)\n";
-  }
-  out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
-         "samples with an estimate within 1 s; worst = the worst seed's rmse_2d; xRT = "
-         "real-time factor; yaw_deg = heading RMSE [deg] (- when the reference has no heading).\n";
-  boundsAndNlosLines(out, dataset, methods, bounds);
-  rejectionLines(out, methods);
-  return out.str();
+  return tableFromJson(metricsJson(dataset, methods, bounds));
+}
+
+std::string formatTableFromJson(const std::string& metrics_json) {
+  return tableFromJson(Json::parse(metrics_json));
 }
 
 namespace {
@@ -386,10 +453,19 @@ void writeRunFiles(const std::string& out_dir, const data::Dataset& dataset,
     for (const auto& [suffix, contents] : m.artifacts)
       data::writeFileAtomic((dir / (fileLabel(m.spec) + "_" + suffix)).string(), contents);
   }
-  data::writeFileAtomic((dir / "metrics.json").string(),
-                        formatMetricsJson(dataset, methods, info.bounds));
+  Json j = metricsJson(dataset, methods, info.bounds);
+  j["wall_time_s"] = number(info.wall_seconds);
+  j["jobs"] = info.jobs;
+  data::writeFileAtomic((dir / "metrics.json").string(), j.dump(2) + "\n");
   data::writeFileAtomic((dir / "metrics.csv").string(), formatMetricsCsv(dataset, methods));
-  data::writeFileAtomic((dir / "report.txt").string(), formatTable(dataset, methods, info.bounds));
+  const std::string table = tableFromJson(j);
+  data::writeFileAtomic((dir / "report.txt").string(), table);
+  std::vector<PlotFile> plots;
+  if (info.plots) plots = writePlots((dir / "plots").string(), dataset, methods);
+  data::writeFileAtomic((dir / "report.html").string(),
+                        formatHtmlReport(dataset, methods, table, plots, (dir / "plots").string()));
+  for (const auto& [name, contents] : info.extra_files)
+    data::writeFileAtomic((dir / name).string(), contents);
 
   std::ostringstream cfg;
   cfg << "# Effective configuration of this run\n[run]\n"

@@ -1,14 +1,19 @@
 #include "uwbloc/evaluation/runner.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <map>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include "uwbloc/dataset/memory_limits.hpp"
+#include "uwbloc/evaluation/trajectory_eval.hpp"
 #include "uwbloc/localization/registry.hpp"
 #include "uwbloc/nlos/model.hpp"
 
@@ -138,36 +143,76 @@ RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint6
   return result;
 }
 
-MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& spec, int repeat,
-                             uint64_t seed, const loc::ParamSet& extra,
-                             const ProgressFn& progress) {
+Metrics scoreRun(const data::Dataset& dataset, const std::vector<loc::PoseEstimate>& trajectory) {
+  const double gap = dataset.manifest.gt_max_gap;
+  const auto errors = associate(trajectory, dataset.ground_truth, gap);
+  Metrics m = computeMetrics(errors, trajectory, dataset.ground_truth, std::max(1.0, gap / 2.0),
+                             dataset.manifest.reference_heading);
+  const auto pairs = associatePoses(trajectory, dataset.ground_truth, {true, gap});
+  if (!pairs.empty()) {
+    const auto score = scoreTrajectory(pairs, Alignment::kSe2, {kRpeDeltaMetres, false});
+    m.rmse_2d_aligned = score.ape_aligned.rmse;
+    m.rpe_trans_rmse = score.rpe.trans.rmse;
+    if (dataset.manifest.reference_heading) m.rpe_rot_rmse_deg = score.rpe.rot_deg.rmse;
+  }
+  return m;
+}
+
+namespace {
+
+// A run scored; only the first seed's keeps its trajectory and per-range details.
+struct ScoredRun {
+  RunResult run;
+  Metrics metrics;
+};
+
+ScoredRun runAndScore(const data::Dataset& dataset, const std::string& spec, uint64_t seed,
+                      bool first, const loc::ParamSet& extra, const ProgressFn& progress) {
+  ScoredRun s{runMethod(dataset, spec, seed, extra, progress), {}};
+  s.metrics = scoreRun(dataset, s.run.trajectory);
+  if (!first) {
+    s.run.trajectory = {};
+    s.run.statistics.range_decisions = {};
+    s.run.artifacts = {};
+  }
+  return s;
+}
+
+// The runs of one method, in seed order, summarised: means over the runs, the first run's
+// details. The sums run in seed order, so the figures do not depend on which thread ran what.
+MethodSummary summarise(const data::Dataset& dataset, const std::string& spec,
+                        std::vector<ScoredRun>& runs) {
   MethodSummary s;
   s.spec = spec;
-  repeat = std::max(1, repeat);
   std::vector<double> rmse;
   double seconds = 0.0;
   long steps = 0;
-  double sum_x = 0.0, sum_y = 0.0, sum_2d = 0.0, sum_mae = 0.0, sum_med = 0.0, sum_p95 = 0.0,
-         sum_max = 0.0, sum_final = 0.0, sum_yaw = 0.0, sum_yaw_med = 0.0, sum_yaw_p95 = 0.0;
-  for (int r = 0; r < repeat; ++r) {
-    RunResult run = runMethod(dataset, spec, seed + static_cast<uint64_t>(r), extra, progress);
-    const double gap = dataset.manifest.gt_max_gap;
-    const auto errors = associate(run.trajectory, dataset.ground_truth, gap);
-    const Metrics m = computeMetrics(errors, run.trajectory, dataset.ground_truth,
-                                     std::max(1.0, gap / 2.0), dataset.manifest.reference_heading);
+  Metrics sum;
+  auto zero = [](Metrics& m) {
+    m.rmse_x = m.rmse_y = m.rmse_2d = m.mae_2d = m.median_2d = m.p95_2d = m.max_2d = 0.0;
+    m.final_2d = m.rmse_yaw_deg = m.median_yaw_deg = m.p95_yaw_deg = 0.0;
+    m.rmse_2d_aligned = m.rpe_trans_rmse = m.rpe_rot_rmse_deg = 0.0;
+  };
+  zero(sum);
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const Metrics& m = runs[r].metrics;
+    RunResult& run = runs[r].run;
     rmse.push_back(m.rmse_2d);
-    s.seed_runs.push_back({seed + static_cast<uint64_t>(r), m.rmse_2d, m.coverage, m.max_2d});
-    sum_x += m.rmse_x;
-    sum_y += m.rmse_y;
-    sum_2d += m.rmse_2d;
-    sum_mae += m.mae_2d;
-    sum_med += m.median_2d;
-    sum_p95 += m.p95_2d;
-    sum_max += m.max_2d;
-    sum_final += m.final_2d;
-    sum_yaw += m.rmse_yaw_deg;
-    sum_yaw_med += m.median_yaw_deg;
-    sum_yaw_p95 += m.p95_yaw_deg;
+    s.seed_runs.push_back({run.seed, m.rmse_2d, m.coverage, m.max_2d});
+    sum.rmse_x += m.rmse_x;
+    sum.rmse_y += m.rmse_y;
+    sum.rmse_2d += m.rmse_2d;
+    sum.mae_2d += m.mae_2d;
+    sum.median_2d += m.median_2d;
+    sum.p95_2d += m.p95_2d;
+    sum.max_2d += m.max_2d;
+    sum.final_2d += m.final_2d;
+    sum.rmse_yaw_deg += m.rmse_yaw_deg;
+    sum.median_yaw_deg += m.median_yaw_deg;
+    sum.p95_yaw_deg += m.p95_yaw_deg;
+    sum.rmse_2d_aligned += m.rmse_2d_aligned;
+    sum.rpe_trans_rmse += m.rpe_trans_rmse;
+    sum.rpe_rot_rmse_deg += m.rpe_rot_rmse_deg;
     seconds += run.processing_seconds;
     steps += m.steps;
     if (r == 0) {
@@ -182,29 +227,95 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
       s.events = run.statistics.events;
       s.estimated_noise = run.statistics.estimated_noise;
       s.estimated_range_sigma = run.statistics.estimated_range_sigma;
-      s.range_decisions = run.statistics.range_decisions;
-      s.artifacts = run.artifacts;
+      s.range_decisions = std::move(run.statistics.range_decisions);
+      s.artifacts = std::move(run.artifacts);
     }
   }
-  const double n = repeat;
-  s.runs = repeat;
-  s.metrics.rmse_x = sum_x / n;
-  s.metrics.rmse_y = sum_y / n;
-  s.metrics.rmse_2d = sum_2d / n;
-  s.metrics.mae_2d = sum_mae / n;
-  s.metrics.median_2d = sum_med / n;
-  s.metrics.p95_2d = sum_p95 / n;
-  s.metrics.max_2d = sum_max / n;
-  s.metrics.final_2d = sum_final / n;
-  s.metrics.rmse_yaw_deg = sum_yaw / n;
-  s.metrics.median_yaw_deg = sum_yaw_med / n;
-  s.metrics.p95_yaw_deg = sum_yaw_p95 / n;
+  const double n = static_cast<double>(runs.size());
+  s.runs = static_cast<int>(runs.size());
+  s.metrics.rmse_x = sum.rmse_x / n;
+  s.metrics.rmse_y = sum.rmse_y / n;
+  s.metrics.rmse_2d = sum.rmse_2d / n;
+  s.metrics.mae_2d = sum.mae_2d / n;
+  s.metrics.median_2d = sum.median_2d / n;
+  s.metrics.p95_2d = sum.p95_2d / n;
+  s.metrics.max_2d = sum.max_2d / n;
+  s.metrics.final_2d = sum.final_2d / n;
+  s.metrics.rmse_yaw_deg = sum.rmse_yaw_deg / n;
+  s.metrics.median_yaw_deg = sum.median_yaw_deg / n;
+  s.metrics.p95_yaw_deg = sum.p95_yaw_deg / n;
+  s.metrics.rmse_2d_aligned = sum.rmse_2d_aligned / n;
+  s.metrics.rpe_trans_rmse = sum.rpe_trans_rmse / n;
+  s.metrics.rpe_rot_rmse_deg = sum.rpe_rot_rmse_deg / n;
   double var = 0.0;
   for (double v : rmse) var += (v - s.metrics.rmse_2d) * (v - s.metrics.rmse_2d);
-  s.rmse_2d_std = repeat > 1 ? std::sqrt(var / (n - 1)) : 0.0;
+  s.rmse_2d_std = runs.size() > 1 ? std::sqrt(var / (n - 1)) : 0.0;
   s.ms_per_step = steps > 0 ? 1e3 * seconds / static_cast<double>(steps) : 0.0;
   s.realtime_factor = seconds > 0.0 ? n * dataset.duration() / seconds : 0.0;
   return s;
+}
+
+}  // namespace
+
+MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& spec, int repeat,
+                             uint64_t seed, const loc::ParamSet& extra,
+                             const ProgressFn& progress) {
+  repeat = std::max(1, repeat);
+  std::vector<ScoredRun> runs;
+  for (int r = 0; r < repeat; ++r)
+    runs.push_back(
+        runAndScore(dataset, spec, seed + static_cast<uint64_t>(r), r == 0, extra, progress));
+  return summarise(dataset, spec, runs);
+}
+
+std::vector<MethodSummary> evaluateMethods(const data::Dataset& dataset,
+                                           const std::vector<MethodJob>& methods, int repeat,
+                                           uint64_t seed, int jobs, const ProgressFn& progress,
+                                           const RunDoneFn& run_done) {
+  repeat = std::max(1, repeat);
+  const size_t per = static_cast<size_t>(repeat), total = methods.size() * per;
+  std::vector<std::vector<ScoredRun>> runs(methods.size(), std::vector<ScoredRun>(per));
+  std::atomic<size_t> next{0};
+  std::atomic<long> done{0};
+  std::mutex failure_mutex;
+  std::exception_ptr failure;
+  // Each worker takes the next (method, seed) run; results land in their own slots, so the
+  // summaries are the same whatever the thread count. The first failure stops the others.
+  auto worker = [&]() {
+    for (;;) {
+      const size_t k = next.fetch_add(1);
+      if (k >= total) return;
+      {
+        std::lock_guard<std::mutex> lock(failure_mutex);
+        if (failure) return;
+      }
+      const size_t mi = k / per, r = k % per;
+      try {
+        runs[mi][r] = runAndScore(dataset, methods[mi].spec, seed + r, r == 0, methods[mi].extra,
+                                  jobs == 1 ? progress : ProgressFn());
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(failure_mutex);
+        if (!failure) failure = std::current_exception();
+        return;
+      }
+      const long finished = ++done;
+      if (run_done) run_done(finished, static_cast<long>(total), methods[mi].spec);
+    }
+  };
+  const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(total)));
+  if (threads == 1) {
+    worker();
+  } else {
+    std::vector<std::thread> pool;
+    for (int i = 0; i < threads; ++i) pool.emplace_back(worker);
+    for (auto& t : pool) t.join();
+  }
+  if (failure) std::rethrow_exception(failure);
+  std::vector<MethodSummary> out;
+  out.reserve(methods.size());
+  for (size_t mi = 0; mi < methods.size(); ++mi)
+    out.push_back(summarise(dataset, methods[mi].spec, runs[mi]));
+  return out;
 }
 
 double MethodSummary::worstRmse() const {

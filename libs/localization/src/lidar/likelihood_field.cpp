@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 namespace uwbloc::loc {
 
@@ -12,30 +13,19 @@ LikelihoodField::LikelihoodField(const OccupancyMap& map, const LikelihoodFieldP
   res_ = map.resolution();
   x0_ = map.bounds().xmin;
   y0_ = map.bounds().ymin;
-  // Two-pass chamfer distance transform (8-neighbour, weights 1 and sqrt 2), in cells.
-  const float inf = 1e9f;
-  std::vector<float> d(static_cast<size_t>(nx_) * ny_, inf);
+  // Exact Euclidean distance, in cells, from each cell to the nearest occupied one (OpenCV's
+  // distanceTransform with the precise mask: Felzenszwalb and Huttenlocher's algorithm). Rows
+  // are cy, columns cx; a zero pixel is an occupied cell.
+  cv::Mat free_cells(ny_, nx_, CV_8UC1);
   for (int cy = 0; cy < ny_; ++cy)
     for (int cx = 0; cx < nx_; ++cx)
-      if (map.freeProbability(cx, cy) < 0.5f) d[static_cast<size_t>(cy) * nx_ + cx] = 0.0f;
-  const float diag = std::sqrt(2.0f);
-  auto at = [&](int cx, int cy) -> float& { return d[static_cast<size_t>(cy) * nx_ + cx]; };
+      free_cells.at<uint8_t>(cy, cx) = map.freeProbability(cx, cy) < 0.5f ? 0 : 255;
+  cv::Mat cells;
+  cv::distanceTransform(free_cells, cells, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+  std::vector<float> d(static_cast<size_t>(nx_) * ny_);
   for (int cy = 0; cy < ny_; ++cy)
-    for (int cx = 0; cx < nx_; ++cx) {
-      float& v = at(cx, cy);
-      if (cx > 0) v = std::min(v, at(cx - 1, cy) + 1.0f);
-      if (cy > 0) v = std::min(v, at(cx, cy - 1) + 1.0f);
-      if (cx > 0 && cy > 0) v = std::min(v, at(cx - 1, cy - 1) + diag);
-      if (cx + 1 < nx_ && cy > 0) v = std::min(v, at(cx + 1, cy - 1) + diag);
-    }
-  for (int cy = ny_ - 1; cy >= 0; --cy)
-    for (int cx = nx_ - 1; cx >= 0; --cx) {
-      float& v = at(cx, cy);
-      if (cx + 1 < nx_) v = std::min(v, at(cx + 1, cy) + 1.0f);
-      if (cy + 1 < ny_) v = std::min(v, at(cx, cy + 1) + 1.0f);
-      if (cx + 1 < nx_ && cy + 1 < ny_) v = std::min(v, at(cx + 1, cy + 1) + diag);
-      if (cx > 0 && cy + 1 < ny_) v = std::min(v, at(cx - 1, cy + 1) + diag);
-    }
+    for (int cx = 0; cx < nx_; ++cx)
+      d[static_cast<size_t>(cy) * nx_ + cx] = cells.at<float>(cy, cx);
   dist_.resize(d.size());
   log_p_.resize(d.size());
   const double norm = 1.0 / (std::sqrt(2.0 * M_PI) * params_.sigma_hit);

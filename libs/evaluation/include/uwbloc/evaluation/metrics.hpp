@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -41,7 +42,19 @@ struct Metrics {
   /// reference_heading = false) or no such estimate was associated.
   double rmse_yaw_deg = NAN, median_yaw_deg = NAN, p95_yaw_deg = NAN;
   std::vector<std::pair<double, double>> cdf;  ///< (error [m], fraction <= error), 21 points
+  /// 2D RMSE after the rigid SE(2) alignment that minimises it (Umeyama, no scale): the error
+  /// that a frame offset does not explain. NaN when nothing was associated.
+  double rmse_2d_aligned = NAN;
+  /// Relative pose error over consecutive kRpeDeltaMetres stretches of the reference path
+  /// (trajectory_eval.hpp): RMSE of its translation [m] and of its rotation [deg] (the latter
+  /// over estimates with a valid heading). NaN when the path is shorter than one stretch.
+  double rpe_trans_rmse = NAN, rpe_rot_rmse_deg = NAN;
+  std::string alignment = "se2";  ///< of rmse_2d_aligned (`evaluate --align`)
+  std::string rpe_delta = "1m";   ///< the RPE stretch (`evaluate --delta`)
 };
+
+/// The RPE stretch of `compare` [m of reference path].
+inline constexpr double kRpeDeltaMetres = 1.0;
 
 /// Metrics of the errors; `coverage_tolerance` [s] is how near an estimate must be to a
 /// ground-truth sample to cover it.

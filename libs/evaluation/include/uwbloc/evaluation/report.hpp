@@ -23,7 +23,7 @@ struct DatasetBounds {
 /// Computes the bounds when the manifest allows it (all NaN otherwise).
 DatasetBounds computeBounds(const data::Dataset& dataset);
 
-/// "t x y z qx qy qz qw" rows, z = 0.
+/// "t x y z qx qy qz qw" rows, z = 0; a pose without a valid heading has the identity quaternion.
 std::string formatTrajectoryTum(const std::vector<loc::PoseEstimate>& trajectory);
 
 /// metrics.json. The schema is stable: later work may add fields, never rename them.
@@ -36,6 +36,15 @@ std::string formatMetricsCsv(const data::Dataset& dataset,
 std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
                         const DatasetBounds& bounds = {});
 
+/// The same table, from the text of a metrics.json (for runs merged by `sweep merge`); throws
+/// nlohmann::json's exceptions on a malformed file.
+std::string formatTableFromJson(const std::string& metrics_json);
+
+/// The metrics.json of single-seed runs (path, text), as one compare of all their seeds would
+/// have written it: the averaged figures averaged in seed order, the seeds' rows gathered, the
+/// rest from the lowest seed (sweep merge). Throws data::InputError naming a malformed file.
+std::string mergeMetricsJson(const std::vector<std::pair<std::string, std::string>>& files);
+
 /// A file name for a method spec ("uwb-kf:q=0.1" -> "uwb-kf_q-0.1").
 std::string fileLabel(const std::string& spec);
 
@@ -45,6 +54,10 @@ struct RunInfo {
   uint64_t seed = 1;
   int repeat = 1;
   DatasetBounds bounds;
+  double wall_seconds = NAN;  ///< of the whole compare (metrics.json: wall_time_s)
+  int jobs = 1;               ///< threads it ran on
+  bool plots = false;         ///< write plots/ (plots.hpp); report.html is written either way
+  std::vector<std::pair<std::string, std::string>> extra_files;  ///< (name, contents)
 };
 
 /// Holds `<out_dir>.lock` (beside the run directory) for as long as it lives, so that a second run
@@ -62,9 +75,11 @@ class RunDirectoryLock {
   std::string path_;
 };
 
-/// Writes every output file of a run as a whole: into a temporary directory beside `out_dir`,
-/// which then replaces `out_dir` (an atomic exchange when it exists). A failed or interrupted run
-/// leaves the previous directory as it was; files of methods no longer run do not survive.
+/// Writes every output file of a run as a whole (metrics.json, metrics.csv, report.txt,
+/// report.html, config.ini, a TUM file per method, plots/ when asked): into a temporary directory
+/// beside `out_dir`, which then replaces `out_dir` (an atomic exchange when it exists). A failed or
+/// interrupted run leaves the previous directory as it was; files of methods no longer run do not
+/// survive.
 void writeRunDirectory(const std::string& out_dir, const data::Dataset& dataset,
                        const std::vector<MethodSummary>& methods, const RunInfo& info);
 

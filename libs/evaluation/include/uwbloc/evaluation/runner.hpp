@@ -89,9 +89,32 @@ struct MethodSummary {
 /// have an estimate within 1 s); empty when it is fine or there is no ground truth to judge by.
 std::string resultFlag(const data::Dataset& dataset, const MethodSummary& m);
 
+/// Metrics of one run's trajectory against the dataset's ground truth, with the aligned RMSE
+/// and the RPE (trajectory_eval.hpp) filled in.
+Metrics scoreRun(const data::Dataset& dataset, const std::vector<loc::PoseEstimate>& trajectory);
+
 /// Runs `spec` `repeat` times with seeds seed, seed+1, ... and summarises.
 MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& spec, int repeat,
                              uint64_t seed, const loc::ParamSet& extra = {},
                              const ProgressFn& progress = nullptr);
+
+/// One method of a compare, with its parameter overrides.
+struct MethodJob {
+  std::string spec;
+  loc::ParamSet extra;
+};
+
+/// Called as each run ends: runs finished, runs in all, the method's spec (from any thread).
+using RunDoneFn = std::function<void(long done, long total, const std::string& spec)>;
+
+/// Every method, `repeat` seeds each, on up to `jobs` threads (one run each). The summaries are
+/// those of evaluateMethod, method by method, bit for bit, whatever `jobs` is (apart from the
+/// timing fields). `progress` is only called when jobs == 1; `run_done` after every run.
+/// An exception in any run is rethrown after the running ones end.
+std::vector<MethodSummary> evaluateMethods(const data::Dataset& dataset,
+                                           const std::vector<MethodJob>& methods, int repeat,
+                                           uint64_t seed, int jobs,
+                                           const ProgressFn& progress = nullptr,
+                                           const RunDoneFn& run_done = nullptr);
 
 }  // namespace uwbloc::eval
