@@ -4,9 +4,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <sstream>
 #include <tuple>
 
@@ -348,14 +350,22 @@ std::vector<double> xsOf(const std::vector<loc::PoseEstimate>& poses, int axis) 
   return out;
 }
 
-void trajectoryPlot(const fs::path& path, const data::Dataset& ds,
-                    const std::vector<const MethodSummary*>& shown,
-                    const std::vector<size_t>& index, const loc::Rect& extent,
-                    const std::string& title) {
+// A trajectory picture's canvas with the map drawn (drawn once, copied for every picture).
+cv::Mat worldCanvas(const data::Dataset& ds, const loc::Rect& extent) {
   cv::Mat img = canvas(1100, 820);
   Chart chart(img, true);
   chart.setRange(extent.xmin, extent.xmax, extent.ymin, extent.ymax, true);
   drawWorld(chart, ds);
+  return img;
+}
+
+void trajectoryPlot(const fs::path& path, const data::Dataset& ds, const cv::Mat& world,
+                    const std::vector<const MethodSummary*>& shown,
+                    const std::vector<size_t>& index, const loc::Rect& extent,
+                    const std::string& title) {
+  cv::Mat img = world.clone();
+  Chart chart(img, true);
+  chart.setRange(extent.xmin, extent.xmax, extent.ymin, extent.ymax, true);
   chart.axes(title, "x [m]", "y [m]");
   if (!ds.ground_truth.empty()) {
     chart.line(xsOf(ds.ground_truth, 0), xsOf(ds.ground_truth, 1), {kBlack, 0, 3});
@@ -591,38 +601,56 @@ bool swarmPlot(const fs::path& path, const data::Dataset& ds,
 }  // namespace
 
 std::vector<PlotFile> writePlots(const std::string& plots_dir, const data::Dataset& dataset,
-                                 const std::vector<MethodSummary>& methods) {
+                                 const std::vector<MethodSummary>& methods, int jobs) {
   const fs::path dir(plots_dir);
   data::ensureDirectory(dir.string());
-  std::vector<PlotFile> out;
   const loc::Rect extent = worldExtent(dataset, methods);
   const std::string world = dataset.map ? "on the map" : "on a blank grid (no map)";
-  std::vector<const MethodSummary*> all;
-  std::vector<size_t> index;
-  for (size_t i = 0; i < methods.size(); ++i) all.push_back(&methods[i]), index.push_back(i);
-  trajectoryPlot(dir / "trajectories.png", dataset, all, index, extent,
-                 "Trajectories " + world + ": " + dataset.name);
-  out.push_back({"trajectories.png", "The reference and every method " + world});
-  if (!dataset.ground_truth.empty()) {
-    cdfPlot(dir / "error_cdf.png", dataset, methods);
-    out.push_back({"error_cdf.png", "Planar error CDF, every method"});
-  }
-  std::string caption;
-  if (residualPlot(dir / "range_residuals.png", dataset, methods, caption))
-    out.push_back({"range_residuals.png", caption});
-  if (swarmPlot(dir / "swarm_spread.png", dataset, methods))
-    out.push_back(
-        {"swarm_spread.png", "PF-IBAS swarm spread (std of the particles' xy) over time"});
+  const cv::Mat world_canvas = worldCanvas(dataset, extent);
+  // Each picture is a task; they run on `jobs` threads and are listed in this order.
+  using Task = std::function<std::optional<PlotFile>()>;
+  std::vector<Task> tasks;
+  tasks.push_back([&]() -> std::optional<PlotFile> {
+    std::vector<const MethodSummary*> all;
+    std::vector<size_t> index;
+    for (size_t i = 0; i < methods.size(); ++i) all.push_back(&methods[i]), index.push_back(i);
+    trajectoryPlot(dir / "trajectories.png", dataset, world_canvas, all, index, extent,
+                   "Trajectories " + world + ": " + dataset.name);
+    return PlotFile{"trajectories.png", "The reference and every method " + world};
+  });
+  if (!dataset.ground_truth.empty())
+    tasks.push_back([&]() -> std::optional<PlotFile> {
+      cdfPlot(dir / "error_cdf.png", dataset, methods);
+      return PlotFile{"error_cdf.png", "Planar error CDF, every method"};
+    });
+  tasks.push_back([&]() -> std::optional<PlotFile> {
+    std::string caption;
+    if (!residualPlot(dir / "range_residuals.png", dataset, methods, caption)) return {};
+    return PlotFile{"range_residuals.png", caption};
+  });
+  tasks.push_back([&]() -> std::optional<PlotFile> {
+    if (!swarmPlot(dir / "swarm_spread.png", dataset, methods)) return {};
+    return PlotFile{"swarm_spread.png",
+                    "PF-IBAS swarm spread (std of the particles' xy) over time"};
+  });
   for (size_t i = 0; i < methods.size(); ++i) {
     const std::string label = fileLabel(methods[i].spec);
-    trajectoryPlot(dir / ("trajectory_" + label + ".png"), dataset, {&methods[i]}, {i}, extent,
-                   methods[i].spec + " " + world);
-    out.push_back({"trajectory_" + label + ".png", methods[i].spec + " and the reference"});
-    if (!dataset.ground_truth.empty()) {
-      errorPlot(dir / ("error_" + label + ".png"), dataset, methods[i], methodStyle(i));
-      out.push_back({"error_" + label + ".png", methods[i].spec + ": planar error over time"});
-    }
+    tasks.push_back([&, i, label]() -> std::optional<PlotFile> {
+      trajectoryPlot(dir / ("trajectory_" + label + ".png"), dataset, world_canvas, {&methods[i]},
+                     {i}, extent, methods[i].spec + " " + world);
+      return PlotFile{"trajectory_" + label + ".png", methods[i].spec + " and the reference"};
+    });
+    if (!dataset.ground_truth.empty())
+      tasks.push_back([&, i, label]() -> std::optional<PlotFile> {
+        errorPlot(dir / ("error_" + label + ".png"), dataset, methods[i], methodStyle(i));
+        return PlotFile{"error_" + label + ".png", methods[i].spec + ": planar error over time"};
+      });
   }
+  std::vector<std::optional<PlotFile>> done(tasks.size());
+  parallelFor(tasks.size(), jobs, [&](size_t k) { done[k] = tasks[k](); });
+  std::vector<PlotFile> out;
+  for (auto& d : done)
+    if (d) out.push_back(std::move(*d));
   return out;
 }
 

@@ -461,7 +461,7 @@ void writeRunFiles(const std::string& out_dir, const data::Dataset& dataset,
   const std::string table = tableFromJson(j);
   data::writeFileAtomic((dir / "report.txt").string(), table);
   std::vector<PlotFile> plots;
-  if (info.plots) plots = writePlots((dir / "plots").string(), dataset, methods);
+  if (info.plots) plots = writePlots((dir / "plots").string(), dataset, methods, info.jobs);
   data::writeFileAtomic((dir / "report.html").string(),
                         formatHtmlReport(dataset, methods, table, plots, (dir / "plots").string()));
   for (const auto& [name, contents] : info.extra_files)

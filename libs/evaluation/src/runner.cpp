@@ -143,6 +143,34 @@ RunResult runMethod(const data::Dataset& dataset, const std::string& spec, uint6
   return result;
 }
 
+void parallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn) {
+  std::atomic<size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::mutex failure_mutex;
+  std::exception_ptr failure;
+  // Each worker takes the next index; the first failure stops the others from starting more.
+  auto worker = [&]() {
+    for (size_t k; !failed && (k = next.fetch_add(1)) < n;) {
+      try {
+        fn(k);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(failure_mutex);
+        if (!failure) failure = std::current_exception();
+        failed = true;
+      }
+    }
+  };
+  const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(std::min<size_t>(n, 1024))));
+  if (threads == 1) {
+    worker();
+  } else {
+    std::vector<std::thread> pool;
+    for (int i = 0; i < threads; ++i) pool.emplace_back(worker);
+    for (auto& t : pool) t.join();
+  }
+  if (failure) std::rethrow_exception(failure);
+}
+
 Metrics scoreRun(const data::Dataset& dataset, const std::vector<loc::PoseEstimate>& trajectory) {
   const double gap = dataset.manifest.gt_max_gap;
   const auto errors = associate(trajectory, dataset.ground_truth, gap);
@@ -275,42 +303,15 @@ std::vector<MethodSummary> evaluateMethods(const data::Dataset& dataset,
   repeat = std::max(1, repeat);
   const size_t per = static_cast<size_t>(repeat), total = methods.size() * per;
   std::vector<std::vector<ScoredRun>> runs(methods.size(), std::vector<ScoredRun>(per));
-  std::atomic<size_t> next{0};
   std::atomic<long> done{0};
-  std::mutex failure_mutex;
-  std::exception_ptr failure;
-  // Each worker takes the next (method, seed) run; results land in their own slots, so the
-  // summaries are the same whatever the thread count. The first failure stops the others.
-  auto worker = [&]() {
-    for (;;) {
-      const size_t k = next.fetch_add(1);
-      if (k >= total) return;
-      {
-        std::lock_guard<std::mutex> lock(failure_mutex);
-        if (failure) return;
-      }
-      const size_t mi = k / per, r = k % per;
-      try {
-        runs[mi][r] = runAndScore(dataset, methods[mi].spec, seed + r, r == 0, methods[mi].extra,
-                                  jobs == 1 ? progress : ProgressFn());
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(failure_mutex);
-        if (!failure) failure = std::current_exception();
-        return;
-      }
-      const long finished = ++done;
-      if (run_done) run_done(finished, static_cast<long>(total), methods[mi].spec);
-    }
-  };
-  const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(total)));
-  if (threads == 1) {
-    worker();
-  } else {
-    std::vector<std::thread> pool;
-    for (int i = 0; i < threads; ++i) pool.emplace_back(worker);
-    for (auto& t : pool) t.join();
-  }
-  if (failure) std::rethrow_exception(failure);
+  // Each run lands in its own slot, so the summaries are the same whatever the thread count.
+  parallelFor(total, jobs, [&](size_t k) {
+    const size_t mi = k / per, r = k % per;
+    runs[mi][r] = runAndScore(dataset, methods[mi].spec, seed + r, r == 0, methods[mi].extra,
+                              jobs == 1 ? progress : ProgressFn());
+    const long finished = ++done;
+    if (run_done) run_done(finished, static_cast<long>(total), methods[mi].spec);
+  });
   std::vector<MethodSummary> out;
   out.reserve(methods.size());
   for (size_t mi = 0; mi < methods.size(); ++mi)

@@ -25,9 +25,9 @@ struct PlotFile {
 /// - range_residuals.png: range minus the distance from the reference, per anchor, over time,
 ///   marked by what the first NLOS-judging method did with each range;
 /// - swarm_spread.png: PF-IBAS's swarm spread over time (methods that log it).
-/// The palette is Okabe and Ito's, which colour-blind readers tell apart. Throws
-/// data::InputError when a file cannot be written.
+/// The palette is Okabe and Ito's, which colour-blind readers tell apart. The pictures are drawn
+/// on up to `jobs` threads. Throws data::InputError when a file cannot be written.
 std::vector<PlotFile> writePlots(const std::string& plots_dir, const data::Dataset& dataset,
-                                 const std::vector<MethodSummary>& methods);
+                                 const std::vector<MethodSummary>& methods, int jobs = 1);
 
 }  // namespace uwbloc::eval

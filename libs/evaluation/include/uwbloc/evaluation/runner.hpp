@@ -98,6 +98,10 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
                              uint64_t seed, const loc::ParamSet& extra = {},
                              const ProgressFn& progress = nullptr);
 
+/// Calls fn(0) ... fn(n - 1) on up to `jobs` threads (each index once, in no set order). After
+/// a failure no new index starts; the first exception is rethrown once the running ones end.
+void parallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn);
+
 /// One method of a compare, with its parameter overrides.
 struct MethodJob {
   std::string spec;
