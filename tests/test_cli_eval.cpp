@@ -162,6 +162,14 @@ TEST(Sweep, PlannedJobsMergedGiveTheTableOfOneCompare) {
     for (const char* key : {"name", "runs", "rmse_2d", "rmse_2d_std", "rmse_2d_worst", "max_2d",
                             "rmse_2d_aligned", "rpe_trans_rmse", "seed_runs", "cdf", "rejected"})
       EXPECT_EQ(ja["methods"][i][key], jb["methods"][i][key]) << i << " " << key;
+  // A metrics.json that is not one of ours is named with the field it lacks.
+  fs::create_directories(dir / "bad");
+  std::ofstream(dir / "bad" / "metrics.json") << R"({"dataset": "x", "methods": [{"name": "a"}]})";
+  const auto bad = cli("sweep merge " + (dir / "bad").string() + " -o " + (dir / "m2").string());
+  EXPECT_NE(bad.code, 0);
+  EXPECT_NE(bad.output.find((dir / "bad" / "metrics.json").string()), std::string::npos)
+      << bad.output;
+  EXPECT_NE(bad.output.find("\"runs\""), std::string::npos) << bad.output;
   // A typo in the plan fails at once, naming the file.
   const auto typo =
       cli("sweep plan --datasets nowhere.ini --methods odom -o " + (dir / "x").string());

@@ -28,6 +28,31 @@ const char* const kAveraged[] = {
     "p95_2d",      "max_2d",          "final_2d",       "rmse_yaw_deg",    "median_yaw_deg",
     "p95_yaw_deg", "rmse_2d_aligned", "rpe_trans_rmse", "rpe_rot_rmse_deg"};
 
+// Every field the merge and the table read, with its type; a file that lacks one is named.
+void checkRun(const std::string& path, const Json& doc) {
+  auto need = [&path](const Json& j, const char* key, bool (Json::*is)() const, const char* what,
+                      const std::string& where) {
+    if (!j.is_object() || !j.contains(key) || !(j.at(key).*is)())
+      throw data::InputError(path + ": not a metrics.json of uwbloc: " + where + "\"" + key +
+                             "\" is missing or not " + what);
+  };
+  need(doc, "dataset", &Json::is_string, "a string", "");
+  need(doc, "methods", &Json::is_array, "an array", "");
+  for (const auto& m : doc["methods"]) {
+    const std::string where = "a method's ";
+    need(m, "name", &Json::is_string, "a string", where);
+    need(m, "runs", &Json::is_number_integer, "an integer", where);
+    need(m, "steps", &Json::is_number_integer, "an integer", where);
+    for (const char* key : {"rejected", "rejected_by_anchor", "events"})
+      need(m, key, &Json::is_object, "an object", where);
+    need(m, "seed_runs", &Json::is_array, "an array", where);
+    if (m["seed_runs"].empty() || !m["seed_runs"][0].is_object() ||
+        !m["seed_runs"][0].contains("seed") || !m["seed_runs"][0]["seed"].is_number_unsigned())
+      throw data::InputError(path + ": not a metrics.json of uwbloc: method " +
+                             m["name"].get<std::string>() + " has no seed in seed_runs");
+  }
+}
+
 }  // namespace
 
 std::string mergeMetricsJson(const std::vector<std::pair<std::string, std::string>>& files) {
@@ -36,10 +61,10 @@ std::string mergeMetricsJson(const std::vector<std::pair<std::string, std::strin
   for (const auto& [path, text] : files) {
     try {
       docs.push_back(Json::parse(text));
-      (void)docs.back().at("methods").size();
     } catch (const Json::exception& e) {
       throw data::InputError(path + ": not a metrics.json: " + e.what());
     }
+    checkRun(path, docs.back());
   }
   // Every run of a method, in first-seen order of the methods; a run directory may hold several
   // methods (one compare) or one.

@@ -367,15 +367,15 @@ void trajectoryPlot(const fs::path& path, const data::Dataset& ds, const cv::Mat
   Chart chart(img, true);
   chart.setRange(extent.xmin, extent.xmax, extent.ymin, extent.ymax, true);
   chart.axes(title, "x [m]", "y [m]");
-  if (!ds.ground_truth.empty()) {
-    chart.line(xsOf(ds.ground_truth, 0), xsOf(ds.ground_truth, 1), {kBlack, 0, 3});
-    chart.legend("reference", {kBlack, 0, 3});
-  }
+  if (!ds.ground_truth.empty()) chart.legend("reference", {kBlack, 0, 3});
   for (size_t k = 0; k < shown.size(); ++k) {
     const Style st = methodStyle(index[k]);
     chart.line(xsOf(shown[k]->trajectory, 0), xsOf(shown[k]->trajectory, 1), st);
     chart.legend(shown[k]->spec, st);
   }
+  // The reference on top, so that many methods cannot bury it.
+  if (!ds.ground_truth.empty())
+    chart.line(xsOf(ds.ground_truth, 0), xsOf(ds.ground_truth, 1), {kBlack, 0, 2});
   drawAnchors(chart, ds, img);
   if (!ds.anchors.empty()) chart.legend("anchor", {kVermillion, 0, 2}, Marker::kTriangle);
   chart.scaleBar();
