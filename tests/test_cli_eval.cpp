@@ -130,6 +130,22 @@ TEST(Evaluate, ATrajectoryFileAsReferenceAndBadInput) {
   EXPECT_NE(late.output.find("no pose overlaps"), std::string::npos) << late.output;
 }
 
+TEST(Jobs, FewerThreadsWhenTheLargestRunsTogetherExceedTheMemoryLimit) {
+  const auto dir = uwbloc::test::scratchDir() / "jobs_memory";
+  // Each run is estimated at about 19 MB (200 000 starting particles x 96 B): one fits in
+  // 30 MB, two do not. (The particles shrink to 50 once converged, so the runs are quick.)
+  const std::string methods = " --methods uwb-pf:init_n=200000,n=50,uwb-pf:init_n=200001,n=50";
+  const auto r = cli("compare -d " + kDemo + methods + " --jobs 2 --max-memory 30M --no-plots -o " +
+                     (dir / "run").string());
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("Running 1 at a time instead of 2"), std::string::npos) << r.output;
+  EXPECT_EQ(readJson(dir / "run" / "metrics.json")["jobs"], 1);
+  const auto fits = cli("compare -d " + kDemo + methods +
+                        " --jobs 2 --max-memory 60M --no-plots -o " + (dir / "run2").string());
+  EXPECT_EQ(fits.output.find("at a time instead"), std::string::npos) << fits.output;
+  EXPECT_EQ(readJson(dir / "run2" / "metrics.json")["jobs"], 2);
+}
+
 TEST(Sweep, PlannedJobsMergedGiveTheTableOfOneCompare) {
   const auto dir = uwbloc::test::scratchDir() / "sweep";
   const std::string methods = "uwb-ekf,pf-ibas:n=150,odom";

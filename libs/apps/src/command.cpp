@@ -1,6 +1,7 @@
 #include "uwbloc/apps/command.hpp"
 
 #include <CLI/CLI.hpp>
+#include <cctype>
 #include <sstream>
 
 #include "commands.hpp"
@@ -13,6 +14,13 @@ std::vector<std::string> splitList(const std::string& text) {
   for (std::string item; std::getline(in, item, ',');)
     if (!item.empty()) out.push_back(item);
   return out;
+}
+
+std::string safeName(const std::string& name, const std::string& fallback) {
+  std::string out;
+  for (char c : name)
+    out += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+  return out.empty() ? fallback : out;
 }
 
 bool Command::chosen() const { return subcommand_ && subcommand_->parsed(); }

@@ -19,6 +19,10 @@ namespace uwbloc::apps {
 /// "a,b,,c" -> {"a", "b", "c"}.
 std::vector<std::string> splitList(const std::string& text);
 
+/// `name` reduced to letters, digits, '-' and '_' (anything else becomes '_'), `fallback` when
+/// empty: a dataset's name made a directory name that cannot point elsewhere.
+std::string safeName(const std::string& name, const std::string& fallback = "dataset");
+
 /// Options of every command that runs methods on a dataset.
 struct RunOptions {
   std::string dataset = "mrpt_uwb_demo.ini";

@@ -205,9 +205,7 @@ int EvaluateCommand::run() {
         {"rpe_rot_deg", statsJson(score.rpe.rot_deg)}};
     summaries.push_back(std::move(m));
   }
-  std::string safe;
-  for (char c : ds.name) safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' ? c : '_';
-  const std::string out = out_.empty() ? "runs/evaluate_" + safe : out_;
+  const std::string out = out_.empty() ? "runs/evaluate_" + safeName(ds.name) : out_;
   const eval::RunDirectoryLock lock(out);
   eval::RunInfo info;
   info.dataset_manifest = reference_;
@@ -323,9 +321,7 @@ int SweepCommand::run() {
   data::ensureDirectory(out);
   for (const auto& name : dataset_order) {
     const std::string text = eval::mergeMetricsJson(by_dataset[name]);
-    std::string safe;
-    for (char c : name) safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' ? c : '_';
-    const fs::path dir = fs::path(out) / safe;
+    const fs::path dir = fs::path(out) / safeName(name);
     data::ensureDirectory(dir.string());
     data::writeFileAtomic((dir / "metrics.json").string(), text);
     const std::string table = eval::formatTableFromJson(text);

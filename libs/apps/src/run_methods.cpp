@@ -2,9 +2,11 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <future>
 #include <iostream>
 #include <map>
@@ -88,10 +90,30 @@ void printProgress(double fraction, double elapsed_s, const std::string& label) 
 
 // Checks every method spec before spending time on any run. With 'all', methods whose needs
 // (ranges, scans, odometry, map) the dataset lacks are skipped; named ones are errors.
+// With `jobs` runs at once, the `jobs` largest may run together: when their estimated memory
+// exceeds the budget, fewer threads are used (said on stderr). Returns the thread count.
+int jobsWithinMemory(const std::vector<double>& bytes, int jobs) {
+  std::vector<double> largest = bytes;
+  std::sort(largest.begin(), largest.end(), std::greater<>());
+  const double budget = static_cast<double>(data::memoryBudget());
+  const int wanted = std::min<int>(jobs, static_cast<int>(largest.size()));
+  double sum = 0.0;
+  int fit = 0;
+  while (fit < wanted && sum + largest[static_cast<size_t>(fit)] <= budget)
+    sum += largest[static_cast<size_t>(fit++)];
+  if (fit >= wanted) return jobs;
+  fit = std::max(1, fit);
+  std::fprintf(stderr,
+               "Running %d at a time instead of %d: the largest runs together would need more "
+               "than the memory limit of %s (--max-memory)\n",
+               fit, jobs, data::formatBytes(budget).c_str());
+  return fit;
+}
+
 std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptions& opt,
                                          const std::map<std::string, loc::ParamSet>& overrides,
                                          const std::vector<std::string>& methods, bool all,
-                                         int jobs) {
+                                         int& jobs) {
   std::vector<std::string> runnable;
   for (const auto& m : methods) {
     const std::string missing = eval::missingNeeds(ds, m);
@@ -106,11 +128,14 @@ std::vector<std::string> runnableMethods(const data::Dataset& ds, const RunOptio
   }
   // Building each method once checks its parameters and its memory; a map's likelihood field
   // makes that take a while, so the methods are built on every thread.
+  std::vector<double> bytes(runnable.size(), 0.0);
   eval::parallelFor(runnable.size(), jobs, [&](size_t i) {
     const auto estimator = loc::Registry::builtin().create(
         runnable[i], eval::makeContext(ds, opt.seed), overridesFor(overrides, runnable[i]));
     eval::checkRunMemory(ds, *estimator);
+    bytes[i] = eval::estimateRunMemory(ds, *estimator).bytes;
   });
+  jobs = jobsWithinMemory(bytes, jobs);
   return runnable;
 }
 
@@ -199,17 +224,14 @@ int RunMethodsCommand::run() {
                            "(--allow-bad-time scores it anyway)");
   // The run directory: --out, or runs/<dataset name> with the name reduced to a safe file name
   // (a manifest's name cannot point the output elsewhere). Locked before any work starts.
-  std::string safe_name;
-  for (char c : ds.name)
-    safe_name += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
-  if (safe_name.empty()) safe_name = "dataset";
-  const std::string out = opt.out.empty() ? "runs/" + safe_name : opt.out;
+  const std::string out = opt.out.empty() ? "runs/" + safeName(ds.name) : opt.out;
   const eval::RunDirectoryLock lock(out);
   const bool all = compare_ && methods_ == "all";
   const auto methods = compare_ ? splitMethods(methods_) : std::vector<std::string>{methods_};
   std::vector<eval::MethodJob> jobs;
   const auto wall_start = std::chrono::steady_clock::now();
-  for (const auto& m : runnableMethods(ds, opt, overrides, methods, all, jobs_))
+  int jobs_used = jobs_;
+  for (const auto& m : runnableMethods(ds, opt, overrides, methods, all, jobs_used))
     jobs.push_back({m, overridesFor(overrides, m)});
   // The bounds (a CRLB over the reference) need no run: computed beside them.
   auto bounds_future = std::async(std::launch::async, [&ds] { return eval::computeBounds(ds); });
@@ -223,20 +245,20 @@ int RunMethodsCommand::run() {
     std::fflush(stderr);
   };
   std::vector<eval::MethodSummary> summaries =
-      eval::evaluateMethods(ds, jobs, opt.repeat, opt.seed, jobs_, printProgress,
-                            jobs_ > 1 ? run_done : eval::RunDoneFn());
+      eval::evaluateMethods(ds, jobs, opt.repeat, opt.seed, jobs_used, printProgress,
+                            jobs_used > 1 ? run_done : eval::RunDoneFn());
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   const eval::DatasetBounds bounds = bounds_future.get();
   eval::writeRunDirectory(
       out, ds, summaries,
-      {manifest, data_dir, opt.seed, opt.repeat, bounds, wall_s, compare_ ? jobs_ : 1, plots_});
+      {manifest, data_dir, opt.seed, opt.repeat, bounds, wall_s, jobs_used, plots_});
   std::cout << eval::formatTable(ds, summaries, bounds);
   std::printf(
       "Wall time of the %zu runs (with building and checking every method): %.2f s on %d "
       "thread(s)\n",
       jobs.size() * static_cast<size_t>(opt.repeat), wall_s,
-      std::min<int>(jobs_, static_cast<int>(jobs.size()) * opt.repeat));
+      std::min<int>(jobs_used, static_cast<int>(jobs.size()) * opt.repeat));
   std::cout << "Run directory: " << out << "\n";
   // No valid result at all is never a success; with --strict, neither is any flagged method.
   long flagged = 0, without_estimate = 0;
