@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -117,6 +118,24 @@ TEST(Plots, EveryPictureIsWrittenAndShowsItsContent) {
   // The trajectory picture carries the map: the demo's occupancy grid is mostly grey or dark.
   const Ink map = inkOf(cv::imread((dir / "trajectories.png").string()));
   EXPECT_GT(map.any, 0.2);
+}
+
+TEST(Plots, EveryRejectedRangeIsKeptWithItsReasonForTheResidualPlot) {
+  for (const auto& m : demoRuns()) {
+    std::map<std::string, long> kept;
+    for (const auto& r : m.range_rejections) ++kept[r.reason];
+    long total = 0;
+    for (const auto& [reason, n] : kept) {
+      EXPECT_EQ(n, m.rejected.at(reason)) << m.spec << " " << reason;
+      total += n;
+    }
+    if (m.spec != "odom") EXPECT_GT(total, 0) << m.spec;  // the demo has zero ranges
+  }
+  std::string caption;
+  const auto files = eval::writePlots((test::scratchDir() / "p").string(), demo(), demoRuns());
+  for (const auto& f : files)
+    if (f.file == "range_residuals.png") caption = f.caption;
+  EXPECT_NE(caption.find("pf-ibas:n=200 did with each range"), std::string::npos) << caption;
 }
 
 TEST(Plots, WithoutMapOrReferenceTheTrajectoryIsStillDrawn) {

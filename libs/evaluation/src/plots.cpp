@@ -456,47 +456,62 @@ void cdfPlot(const fs::path& path, const data::Dataset& ds,
   save(path, img);
 }
 
-// What the method did with a range, by the reason shown in the residual plot.
-enum class RangeFate { kUsed, kPoseNlos, kRaycastNlos, kNotUsed, kFrontEnd, kNotJudged };
-
-struct FateStyle {
-  const char* label;
-  cv::Scalar color;
-  Marker marker;
+// What a method did with each range: a category (its label) per range, each drawn with its own
+// marker. The judge is the first method that records its NLOS decisions (the particle filters),
+// else the first that records its front end's rejections.
+struct RangeFates {
+  const MethodSummary* judge = nullptr;
+  std::vector<std::string> labels;                         ///< in drawing order (the rarest on top)
+  std::map<std::tuple<double, int, double>, size_t> fate;  ///< (t, anchor, range) -> label index
+  size_t fallback = 0;  ///< the label of a range the judge has no record of
 };
-FateStyle fateStyle(RangeFate f) {
-  switch (f) {
-    case RangeFate::kUsed:
-      return {"used", kBlue, Marker::kDot};
-    case RangeFate::kPoseNlos:
-      return {"NLOS: LiDAR-pose test", kVermillion, Marker::kCross};
-    case RangeFate::kRaycastNlos:
-      return {"NLOS: map ray-cast", kOrange, Marker::kTriangle};
-    case RangeFate::kNotUsed:
-      return {"not used (filter gate)", kPurple, Marker::kSquare};
-    case RangeFate::kFrontEnd:
-      return {"front end rejected", kGrey, Marker::kCircle};
-    case RangeFate::kNotJudged:
-      return {"range (not judged)", kBlue, Marker::kDot};
+
+RangeFates rangeFates(const std::vector<MethodSummary>& methods) {
+  RangeFates f;
+  for (const auto& m : methods)
+    if (!m.range_decisions.empty()) {
+      f.judge = &m;
+      break;
+    }
+  if (!f.judge)
+    for (const auto& m : methods)
+      if (!m.range_rejections.empty()) {
+        f.judge = &m;
+        break;
+      }
+  auto label = [&f](const std::string& l) {
+    const auto it = std::find(f.labels.begin(), f.labels.end(), l);
+    if (it != f.labels.end()) return static_cast<size_t>(it - f.labels.begin());
+    f.labels.push_back(l);
+    return f.labels.size() - 1;
+  };
+  if (!f.judge) {
+    f.fallback = label("range (no method judged it)");
+    return f;
   }
-  return {"", kBlack, Marker::kDot};
+  const bool decides = !f.judge->range_decisions.empty();
+  f.fallback = label(decides ? "not used by the filter" : "accepted by the front end");
+  if (decides) {
+    const size_t used = label("used"), pose = label("NLOS: pose test"),
+                 ray = label("NLOS: ray-cast"), gated = label("not used by the filter");
+    for (const auto& d : f.judge->range_decisions)
+      f.fate[{d.t, d.anchor_id, d.range}] = d.used           ? used
+                                            : d.flag_pose    ? pose
+                                            : d.flag_raycast ? ray
+                                                             : gated;
+  }
+  for (const auto& r : f.judge->range_rejections)
+    f.fate[{r.t, r.anchor_id, r.range}] = label(r.reason);
+  return f;
 }
 
 bool residualPlot(const fs::path& path, const data::Dataset& ds,
                   const std::vector<MethodSummary>& methods, std::string& caption) {
   if (ds.ground_truth.empty() || ds.anchors.empty()) return false;
-  const MethodSummary* judge = nullptr;
-  for (const auto& m : methods)
-    if (!m.range_decisions.empty()) {
-      judge = &m;
-      break;
-    }
-  std::map<std::tuple<double, int, double>, const loc::RangeDecision*> decided;
-  if (judge)
-    for (const auto& d : judge->range_decisions) decided[{d.t, d.anchor_id, d.range}] = &d;
+  const RangeFates fates = rangeFates(methods);
   struct Point {
     double t, residual;
-    RangeFate fate;
+    size_t fate;
   };
   std::map<int, std::vector<Point>> by_anchor;
   const double t0 = startTime(ds);
@@ -506,24 +521,32 @@ bool residualPlot(const fs::path& path, const data::Dataset& ds,
     const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
     const auto truth = interpolateGroundTruth(ds.ground_truth, r->t, ds.manifest.gt_max_gap);
     if (!a || !truth) continue;
-    RangeFate fate = RangeFate::kNotJudged;
-    if (judge) {
-      const auto it = decided.find({r->t, r->anchor_id, r->range});
-      if (it == decided.end())
-        fate = RangeFate::kFrontEnd;
-      else if (it->second->used)
-        fate = RangeFate::kUsed;
-      else if (it->second->flag_pose)
-        fate = RangeFate::kPoseNlos;
-      else if (it->second->flag_raycast)
-        fate = RangeFate::kRaycastNlos;
-      else
-        fate = RangeFate::kNotUsed;
-    }
+    const auto it = fates.fate.find({r->t, r->anchor_id, r->range});
     by_anchor[r->anchor_id].push_back(
-        {r->t - t0, r->range - uwb::predictRange(*truth, r->tag_on_robot, a->position), fate});
+        {r->t - t0, r->range - uwb::predictRange(*truth, r->tag_on_robot, a->position),
+         it == fates.fate.end() ? fates.fallback : it->second});
   }
   if (by_anchor.empty()) return false;
+  // Markers and colours by category: what was used (or merely accepted) small blue dots, the
+  // judge's unrecorded ranges grey circles, every rejection or NLOS verdict its own shape.
+  const std::vector<std::pair<Marker, cv::Scalar>> looks{
+      {Marker::kCross, kVermillion}, {Marker::kTriangle, kOrange},  {Marker::kSquare, kPurple},
+      {Marker::kCross, kGreen},      {Marker::kTriangle, kSkyBlue}, {Marker::kSquare, kBlack},
+      {Marker::kCross, kYellow}};
+  std::vector<std::pair<Marker, cv::Scalar>> looked(fates.labels.size());
+  for (size_t f = 0, other = 0; f < fates.labels.size(); ++f) {
+    const std::string& l = fates.labels[f];
+    if (l == "used" || l == "accepted by the front end" || l == "range (no method judged it)")
+      looked[f] = {Marker::kDot, kBlue};
+    else if (f == fates.fallback)
+      looked[f] = {Marker::kCircle, kGrey};
+    else
+      looked[f] = looks[other++ % looks.size()];
+  }
+  auto look = [&](size_t f) { return looked[f]; };
+  std::vector<long> total(fates.labels.size(), 0);  // the legend lists what occurs
+  for (const auto& [anchor, points] : by_anchor)
+    for (const auto& p : points) ++total[p.fate];
   const size_t panels = std::min<size_t>(by_anchor.size(), 12);
   const int panel_h = 190;
   cv::Mat img = canvas(1100, static_cast<int>(panels) * panel_h + 10);
@@ -540,25 +563,35 @@ bool residualPlot(const fs::path& path, const data::Dataset& ds,
     chart.setRange(0.0, t1, lo - pad, hi + pad);
     chart.axes("Anchor " + std::to_string(anchor) + ": range - distance from the reference",
                k + 1 == panels ? "time since start [s]" : "", "residual [m]");
-    for (RangeFate f : {RangeFate::kNotJudged, RangeFate::kUsed, RangeFate::kFrontEnd,
-                        RangeFate::kNotUsed, RangeFate::kRaycastNlos, RangeFate::kPoseNlos}) {
+    // The common categories first, so that the rare ones are drawn over them.
+    std::vector<size_t> order(fates.labels.size());
+    std::vector<size_t> count(fates.labels.size(), 0);
+    for (const auto& p : points) ++count[p.fate];
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return count[a] > count[b]; });
+    for (size_t f : order) {
       std::vector<double> xs, ys;
       for (const auto& p : points)
         if (p.fate == f) xs.push_back(p.t), ys.push_back(p.residual);
-      if (xs.empty() && k != 0) continue;
-      const FateStyle fs = fateStyle(f);
-      chart.markers(xs, ys, fs.marker, fs.color, f == RangeFate::kUsed ? 2 : 4, true);
-      if (k == 0 && (judge ? f != RangeFate::kNotJudged : f == RangeFate::kNotJudged))
-        chart.legend(fs.label, {fs.color, 0, 2}, fs.marker);
+      const auto [marker, colour] = look(f);
+      chart.markers(xs, ys, marker, colour, marker == Marker::kDot ? 2 : 4, true);
     }
+    if (k == 0)
+      for (size_t f = 0; f < fates.labels.size(); ++f)
+        if (total[f] > 0)
+          chart.legend(fates.labels[f] + " (" + std::to_string(total[f]) + ")",
+                       {look(f).second, 0, 2}, look(f).first);
     chart.line({0.0, t1}, {0.0, 0.0}, {kBlack, 1, 1});
     chart.finish();
     ++k;
   }
   save(path, img);
   caption = "Range residuals (range minus the distance from the reference pose) per anchor";
-  caption += judge ? ", marked by what " + judge->spec + " did with each range"
-                   : "; no method recorded its decisions";
+  caption += fates.judge ? ", marked by what " + fates.judge->spec +
+                               " did with each range (used; NLOS by its LiDAR-pose test or map "
+                               "ray-cast; or rejected by its front end, by reason)"
+                         : "; no method recorded what it did with them";
   if (by_anchor.size() > panels) caption += " (the first 12 anchors)";
   return true;
 }

@@ -201,6 +201,7 @@ ScoredRun runAndScore(const data::Dataset& dataset, const std::string& spec, uin
   if (!first) {
     s.run.trajectory = {};
     s.run.statistics.range_decisions = {};
+    s.run.statistics.range_rejections = {};
     s.run.artifacts = {};
   }
   return s;
@@ -256,6 +257,7 @@ MethodSummary summarise(const data::Dataset& dataset, const std::string& spec,
       s.estimated_noise = run.statistics.estimated_noise;
       s.estimated_range_sigma = run.statistics.estimated_range_sigma;
       s.range_decisions = std::move(run.statistics.range_decisions);
+      s.range_rejections = std::move(run.statistics.range_rejections);
       s.artifacts = std::move(run.artifacts);
     }
   }

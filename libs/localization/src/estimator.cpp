@@ -42,6 +42,11 @@ void countRejection(EstimatorStatistics& stats, const std::string& reason, int a
   if (anchor_id >= 0) ++stats.rejected_by_anchor[anchor_id][reason];
 }
 
+void rejectRange(EstimatorStatistics& stats, const uwb::Range& range, const std::string& reason) {
+  countRejection(stats, reason, range.anchor_id);
+  stats.range_rejections.push_back({range.t, range.anchor_id, range.tag_id, range.range, reason});
+}
+
 void Estimator::countRejection(const std::string& reason, int anchor_id) {
   loc::countRejection(stats_, reason, anchor_id);
 }

@@ -184,7 +184,7 @@ std::optional<AcceptedRange> UwbEstimator::acceptRange(const Event& event) {
   uwb::RejectReason reason{};
   auto accepted = front_.accept(*range, &reason);
   if (!accepted) {
-    countRejection(reason, range->anchor_id);
+    rejectRange(stats_, *range, uwb::toString(reason));
     return std::nullopt;
   }
   ++stats_.accepted_ranges;

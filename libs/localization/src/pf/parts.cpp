@@ -103,7 +103,7 @@ bool UwbRangeMeasurement::take(const Event& event, EstimatorStatistics& stats) {
   uwb::RejectReason reason{};
   auto accepted = front_.accept(*range, &reason);
   if (!accepted) {
-    countRejection(stats, uwb::toString(reason), range->anchor_id);
+    rejectRange(stats, *range, uwb::toString(reason));
     return false;
   }
   ++stats.accepted_ranges;

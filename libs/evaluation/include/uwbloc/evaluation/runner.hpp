@@ -81,6 +81,7 @@ struct MethodSummary {
   std::vector<loc::ParamInfo> parameters;
   std::vector<loc::PoseEstimate> trajectory;        ///< of the first run
   std::vector<loc::RangeDecision> range_decisions;  ///< of the first run (NLOS-judging methods)
+  std::vector<loc::RangeRejection> range_rejections;  ///< of the first run (its front end)
   std::vector<std::pair<std::string, std::string>> artifacts;  ///< of the first run
 };
 

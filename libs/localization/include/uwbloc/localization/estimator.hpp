@@ -47,9 +47,20 @@ struct NoiseEstimate {
   long ranges = 0;     ///< ranges it was estimated from
 };
 
+/// A range the front end rejected, with the reason (for the residual plot; the counts are in
+/// EstimatorStatistics::rejected).
+struct RangeRejection {
+  double t = 0.0;
+  int anchor_id = 0;
+  int tag_id = 0;
+  double range = 0.0;
+  std::string reason;
+};
+
 struct EstimatorStatistics {
   std::vector<RangeDecision> range_decisions;
-  std::map<std::string, long> rejected;                           ///< reason -> count
+  std::vector<RangeRejection> range_rejections;  ///< every range the front end rejected
+  std::map<std::string, long> rejected;          ///< reason -> count
   std::map<int, std::map<std::string, long>> rejected_by_anchor;  ///< anchor -> reason -> count
   long accepted_ranges = 0;
   long resets = 0;  ///< divergence re-initialisations
@@ -64,6 +75,9 @@ struct EstimatorStatistics {
 
 /// Counts one rejection by reason (and by anchor when anchor_id >= 0).
 void countRejection(EstimatorStatistics& stats, const std::string& reason, int anchor_id = -1);
+
+/// Counts a rejected range and keeps it, with the reason, in stats.range_rejections.
+void rejectRange(EstimatorStatistics& stats, const uwb::Range& range, const std::string& reason);
 
 /// What a method may know besides the events: anchors, the start pose (for tracking and dead
 /// reckoning, taken from the first ground-truth pose), and the run's seed.
