@@ -104,7 +104,8 @@ TEST(Evaluate, ATrajectoryFileAsReferenceAndBadInput) {
   std::ofstream ref(dir / "ref.txt"), est(dir / "est.tum");
   for (int k = 0; k <= 40; ++k) {
     ref << 0.5 * k << " " << 0.2 * k << " 0 0\n";
-    est << 0.5 * k << " " << 0.2 * k + 1.0 << " 0 0 0 0 0 1\n";
+    // Heading 0.1 rad, which a reference without heading cannot judge.
+    est << 0.5 * k << " " << 0.2 * k + 1.0 << " 0 0 0 0 0.04997917 0.99875026\n";
   }
   ref.close();
   est.close();
@@ -117,6 +118,9 @@ TEST(Evaluate, ATrajectoryFileAsReferenceAndBadInput) {
   EXPECT_NEAR(m["rmse_2d_aligned"].get<double>(), 0.0, 1e-9);
   EXPECT_NEAR(m["rpe_trans_rmse"].get<double>(), 0.0, 1e-9);
   EXPECT_FALSE(fs::exists(dir / "out" / "plots"));
+  // A reference whose every heading is 0 has none: no heading is scored against it.
+  EXPECT_TRUE(m["rmse_yaw_deg"].is_null());
+  EXPECT_EQ(readJson(dir / "out" / "ape.json")["est"]["yaw_deg"]["n"], 0);
   // A file of neither layout, and a reference that never overlaps.
   std::ofstream(dir / "bad.txt") << "1 2 3\n";
   const auto bad = cli("evaluate -r " + (dir / "ref.txt").string() + " -e " +

@@ -165,7 +165,11 @@ int EvaluateCommand::run() {
     m.runs = 1;
     for (const auto& p : poses)
       m.trajectory.push_back({p.t, p.pose, Eigen::Matrix3d::Identity(), heading});
-    const auto pairs = eval::associatePoses(m.trajectory, ds.ground_truth, assoc);
+    auto pairs = eval::associatePoses(m.trajectory, ds.ground_truth, assoc);
+    // Against a reference without heading, no estimate's heading can be judged: the RPE then
+    // compares displacements in the map frame, and no yaw is scored.
+    if (!ds.manifest.reference_heading)
+      for (auto& p : pairs) p.heading = false;
     std::vector<eval::ErrorSample> errors;
     for (const auto& p : pairs) {
       eval::ErrorSample e;

@@ -176,7 +176,11 @@ Metrics scoreRun(const data::Dataset& dataset, const std::vector<loc::PoseEstima
   const auto errors = associate(trajectory, dataset.ground_truth, gap);
   Metrics m = computeMetrics(errors, trajectory, dataset.ground_truth, std::max(1.0, gap / 2.0),
                              dataset.manifest.reference_heading);
-  const auto pairs = associatePoses(trajectory, dataset.ground_truth, {true, gap});
+  auto pairs = associatePoses(trajectory, dataset.ground_truth, {true, gap});
+  // Against a reference without heading, no heading can be judged: the RPE then compares
+  // displacements in the map frame.
+  if (!dataset.manifest.reference_heading)
+    for (auto& p : pairs) p.heading = false;
   if (!pairs.empty()) {
     const auto score = scoreTrajectory(pairs, Alignment::kSe2, {kRpeDeltaMetres, false});
     m.rmse_2d_aligned = score.ape_aligned.rmse;
