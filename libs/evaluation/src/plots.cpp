@@ -367,6 +367,7 @@ void trajectoryPlot(const fs::path& path, const data::Dataset& ds, const cv::Mat
   Chart chart(img, true);
   chart.setRange(extent.xmin, extent.xmax, extent.ymin, extent.ymax, true);
   chart.axes(title, "x [m]", "y [m]");
+  chart.scaleBar();  // under the lines and the anchors, which it must not hide
   if (!ds.ground_truth.empty()) chart.legend("reference", {kBlack, 0, 3});
   for (size_t k = 0; k < shown.size(); ++k) {
     const Style st = methodStyle(index[k]);
@@ -378,7 +379,6 @@ void trajectoryPlot(const fs::path& path, const data::Dataset& ds, const cv::Mat
     chart.line(xsOf(ds.ground_truth, 0), xsOf(ds.ground_truth, 1), {kBlack, 0, 2});
   drawAnchors(chart, ds, img);
   if (!ds.anchors.empty()) chart.legend("anchor", {kVermillion, 0, 2}, Marker::kTriangle);
-  chart.scaleBar();
   chart.finish();
   save(path, img);
 }
