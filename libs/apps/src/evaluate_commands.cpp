@@ -23,7 +23,6 @@
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/evaluation/trajectory_eval.hpp"
-#include "uwbloc/uwb/pose2.hpp"
 
 namespace fs = std::filesystem;
 
@@ -170,17 +169,7 @@ int EvaluateCommand::run() {
     // compares displacements in the map frame, and no yaw is scored.
     if (!ds.manifest.reference_heading)
       for (auto& p : pairs) p.heading = false;
-    std::vector<eval::ErrorSample> errors;
-    for (const auto& p : pairs) {
-      eval::ErrorSample e;
-      e.t = p.t;
-      e.ex = p.est.x() - p.ref.x();
-      e.ey = p.est.y() - p.ref.y();
-      e.e2d = std::hypot(e.ex, e.ey);
-      e.eyaw = heading ? wrapAngle(p.est.z() - p.ref.z()) : NAN;
-      errors.push_back(e);
-    }
-    m.metrics = eval::computeMetrics(errors, m.trajectory, ds.ground_truth,
+    m.metrics = eval::computeMetrics(eval::errorSamples(pairs), m.trajectory, ds.ground_truth,
                                      std::max(assoc.max_diff, 1e-9), ds.manifest.reference_heading);
     const auto score = eval::scoreTrajectory(pairs, alignment, delta);
     m.metrics.rmse_2d_aligned = score.ape_aligned.rmse;

@@ -1,5 +1,7 @@
 #include "uwbloc/evaluation/html_report.hpp"
 
+#include <mrpt/system/string_utils.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -9,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "json_numbers.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 
 namespace fs = std::filesystem;
@@ -17,24 +20,10 @@ namespace uwbloc::eval {
 
 namespace {
 
+// MRPT's base-64 (it breaks lines every 72 characters, which URL parsing drops).
 std::string base64(const std::string& bytes) {
-  static const char* kDigits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const uint32_t v = (uint32_t(uint8_t(bytes[i])) << 16) |
-                       (uint32_t(uint8_t(bytes[i + 1])) << 8) | uint8_t(bytes[i + 2]);
-    for (int s = 18; s >= 0; s -= 6) out += kDigits[(v >> s) & 63];
-  }
-  if (i < bytes.size()) {
-    uint32_t v = uint32_t(uint8_t(bytes[i])) << 16;
-    if (i + 1 < bytes.size()) v |= uint32_t(uint8_t(bytes[i + 1])) << 8;
-    out += kDigits[(v >> 18) & 63];
-    out += kDigits[(v >> 12) & 63];
-    out += i + 1 < bytes.size() ? kDigits[(v >> 6) & 63] : '=';
-    out += '=';
-  }
+  mrpt::system::encodeBase64(std::vector<uint8_t>(bytes.begin(), bytes.end()), out);
   return out;
 }
 
@@ -77,7 +66,7 @@ std::string scriptSafe(std::string s) {
 
 double mm(double v) { return std::round(v * 1000.0) / 1000.0; }
 
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(mm(v)) : nullptr; }
+nlohmann::json number(double v) { return jsonNumber(mm(v)); }
 
 // The charts' data: reference, anchors, map (a grey PNG with its extent), and per method the
 // trajectory, the error over time and the CDF, each thinned to at most ~3000 points.

@@ -5,6 +5,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "json_numbers.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/evaluation/report.hpp"
 
@@ -14,12 +15,8 @@ namespace {
 
 using Json = nlohmann::json;
 
-double num(const Json& j, const char* key) {
-  const auto it = j.find(key);
-  return it == j.end() || !it->is_number() ? NAN : it->get<double>();
-}
-
-Json number(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
+double num(const Json& j, const char* key) { return jsonNum(j, key); }
+Json number(double v) { return jsonNumber(v); }
 
 // The figures compare averages over its runs (runner.cpp, summarise); the rest are the first
 // run's.

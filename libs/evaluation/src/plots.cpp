@@ -336,14 +336,9 @@ void drawAnchors(Chart& chart, const data::Dataset& ds, cv::Mat& img) {
   }
 }
 
-std::vector<double> xsOf(const std::vector<data::TimedPose>& poses, int axis) {
-  std::vector<double> out;
-  out.reserve(poses.size());
-  for (const auto& p : poses) out.push_back(p.pose[axis]);
-  return out;
-}
-
-std::vector<double> xsOf(const std::vector<loc::PoseEstimate>& poses, int axis) {
+// One coordinate of every pose (reference or estimate).
+template <class Pose>
+std::vector<double> xsOf(const std::vector<Pose>& poses, int axis) {
   std::vector<double> out;
   out.reserve(poses.size());
   for (const auto& p : poses) out.push_back(p.pose[axis]);

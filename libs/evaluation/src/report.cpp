@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "json_numbers.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/evaluation/bounds.hpp"
@@ -35,8 +36,7 @@ long totalRejected(const MethodSummary& m) {
   return n;
 }
 
-// JSON numbers must be finite; a metric that could not be computed is written as null.
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nullptr; }
+nlohmann::json number(double v) { return jsonNumber(v); }
 
 }  // namespace
 
@@ -195,11 +195,7 @@ namespace {
 
 using Json = nlohmann::json;
 
-// A number of metrics.json (null: not computed).
-double num(const Json& j, const char* key) {
-  const auto it = j.find(key);
-  return it == j.end() || !it->is_number() ? NAN : it->get<double>();
-}
+double num(const Json& j, const char* key) { return jsonNum(j, key); }
 
 // A metrics.json object keyed by anchor id, in numeric order (JSON keeps keys as text).
 std::vector<std::pair<int, const Json*>> byAnchor(const Json& object) {

@@ -173,14 +173,13 @@ void parallelFor(size_t n, int jobs, const std::function<void(size_t)>& fn) {
 
 Metrics scoreRun(const data::Dataset& dataset, const std::vector<loc::PoseEstimate>& trajectory) {
   const double gap = dataset.manifest.gt_max_gap;
-  const auto errors = associate(trajectory, dataset.ground_truth, gap);
-  Metrics m = computeMetrics(errors, trajectory, dataset.ground_truth, std::max(1.0, gap / 2.0),
-                             dataset.manifest.reference_heading);
   auto pairs = associatePoses(trajectory, dataset.ground_truth, {true, gap});
   // Against a reference without heading, no heading can be judged: the RPE then compares
   // displacements in the map frame.
   if (!dataset.manifest.reference_heading)
     for (auto& p : pairs) p.heading = false;
+  Metrics m = computeMetrics(errorSamples(pairs), trajectory, dataset.ground_truth,
+                             std::max(1.0, gap / 2.0), dataset.manifest.reference_heading);
   if (!pairs.empty()) {
     const auto score = scoreTrajectory(pairs, Alignment::kSe2, {kRpeDeltaMetres, false});
     m.rmse_2d_aligned = score.ape_aligned.rmse;

@@ -124,6 +124,21 @@ ErrorStats errorStats(const std::vector<double>& errors) {
   return s;
 }
 
+std::vector<ErrorSample> errorSamples(const std::vector<PosePair>& pairs) {
+  std::vector<ErrorSample> out;
+  out.reserve(pairs.size());
+  for (const auto& p : pairs) {
+    ErrorSample e;
+    e.t = p.t;
+    e.ex = p.est.x() - p.ref.x();
+    e.ey = p.est.y() - p.ref.y();
+    e.e2d = std::hypot(e.ex, e.ey);
+    e.eyaw = p.heading ? wrapAngle(p.est.z() - p.ref.z()) : NAN;
+    out.push_back(e);
+  }
+  return out;
+}
+
 std::vector<double> apeErrors(const std::vector<PosePair>& pairs) {
   std::vector<double> out;
   out.reserve(pairs.size());

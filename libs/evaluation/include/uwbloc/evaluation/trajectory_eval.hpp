@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/localization/estimator.hpp"
 
 namespace uwbloc::eval {
@@ -57,6 +58,10 @@ struct ErrorStats {
   double rmse = NAN, mean = NAN, median = NAN, std = NAN, min = NAN, max = NAN, sse = NAN;
 };
 ErrorStats errorStats(const std::vector<double>& errors);
+
+/// The pairs as metrics.hpp's error samples (estimate minus reference; the heading error NaN
+/// where the pair's heading is not valid).
+std::vector<ErrorSample> errorSamples(const std::vector<PosePair>& pairs);
 
 /// Planar position error |p_est - p_ref| of each pair (APE, translation part).
 std::vector<double> apeErrors(const std::vector<PosePair>& pairs);
