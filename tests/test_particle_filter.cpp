@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <memory>
 
 #include "uwbloc/dataset/world.hpp"
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
@@ -150,6 +152,49 @@ TEST(LikelihoodField, DistancesAndPeakAtTheTruePose) {
        {Eigen::Vector3d(0.2, 0, 0), Eigen::Vector3d(0, -0.2, 0), Eigen::Vector3d(0, 0, 0.1)})
     EXPECT_GT(at_truth,
               field.logLikelihood(truth.x() + d.x(), truth.y() + d.y(), truth.z() + d.z()));
+}
+
+TEST(LikelihoodField, TablesAreSharedPerLiveMapAndModel) {
+  const auto rooms = [](double obstacle_x) {
+    return std::make_shared<const uwbloc::loc::OccupancyMap>(
+        uwbloc::data::mapFromRectangles({0, 0, 10, 6}, {{obstacle_x, 2, obstacle_x + 1, 3}}, 0.05));
+  };
+  LikelihoodFieldParams params;
+  params.max_dist = 1.0;
+  params.decimation = 4;
+  auto map = rooms(4.0);
+  const LikelihoodField a(map, params), b(map, params);
+  EXPECT_TRUE(a.sharesTables(b));
+  auto every_ray = params;  // the decimation is not part of the tables
+  every_ray.decimation = 1;
+  EXPECT_TRUE(a.sharesTables(LikelihoodField(map, every_ray)));
+  auto wider = params;
+  wider.sigma_hit = 0.5;
+  EXPECT_FALSE(a.sharesTables(LikelihoodField(map, wider)));
+  // The same scores as tables built for one field alone.
+  LikelihoodField shared(map, params), alone(*map, params);
+  EXPECT_FALSE(shared.sharesTables(alone));
+  const Eigen::Vector3d truth(2.0, 2.5, 0.3);
+  const auto scan =
+      uwbloc::data::castScan(*map, truth, uwbloc::data::LidarParams::preset("sick_lms"));
+  shared.setScan(scan);
+  alone.setScan(scan);
+  for (double dx : {0.0, 0.1, 0.3})
+    EXPECT_EQ(shared.logLikelihood(truth.x() + dx, truth.y(), truth.z()),
+              alone.logLikelihood(truth.x() + dx, truth.y(), truth.z()));
+  // A map made after another one died gets its own tables, even at the dead map's address
+  // (made here right after the old one is freed, which the allocator is likely to reuse): the
+  // obstacle moved from x = 4..5 to x = 7..8.
+  auto old_map = rooms(4.0);
+  EXPECT_NEAR(LikelihoodField(old_map, params).distance(4.5, 3.4), 0.4, 0.06);
+  auto replacement = uwbloc::data::mapFromRectangles({0, 0, 10, 6}, {{7, 2, 8, 3}}, 0.05);
+  const auto* old_address = old_map.get();
+  old_map.reset();
+  const auto new_map = std::make_shared<const uwbloc::loc::OccupancyMap>(std::move(replacement));
+  if (new_map.get() == old_address) std::printf("the new map took the old one's address\n");
+  const LikelihoodField moved(new_map, params);
+  EXPECT_NEAR(moved.distance(4.5, 3.4), 1.0, 1e-9);
+  EXPECT_NEAR(moved.distance(7.5, 3.4), 0.4, 0.06);
 }
 
 TEST(ParticleFilter, WideStartShrinksOnceConvergedAndGrowsBackOnReset) {

@@ -68,11 +68,10 @@ double mm(double v) { return std::round(v * 1000.0) / 1000.0; }
 
 nlohmann::json number(double v) { return jsonNumber(mm(v)); }
 
-// The charts' data: reference, anchors, map (a grey PNG with its extent), and per method the
-// trajectory, the error over time and the CDF, each thinned to at most ~3000 points.
-nlohmann::json chartData(const data::Dataset& ds, const std::vector<MethodSummary>& methods) {
+// The charts' data, each series thinned to at most ~3000 points: the reference, the anchors
+// and the map (a grey PNG with its extent) here, each method's part in methodChart().
+nlohmann::json chartData(const data::Dataset& ds) {
   nlohmann::json j;
-  const double t0 = ds.ground_truth.empty() ? ds.start_time : ds.ground_truth.front().t;
   auto thin = [](size_t n) { return std::max<size_t>(1, n / 3000); };
   j["reference"] = nlohmann::json::array();
   for (size_t i = 0, s = thin(ds.ground_truth.size()); i < ds.ground_truth.size(); i += s)
@@ -98,30 +97,42 @@ nlohmann::json chartData(const data::Dataset& ds, const std::vector<MethodSummar
                   {"ymax", b.ymax}};
     }
   }
-  j["methods"] = nlohmann::json::array();
-  for (const auto& m : methods) {
-    nlohmann::json e;
-    e["name"] = m.spec;
-    e["trajectory"] = nlohmann::json::array();
-    for (size_t i = 0, s = thin(m.trajectory.size()); i < m.trajectory.size(); i += s)
-      if (std::isfinite(m.trajectory[i].pose.x()) && std::isfinite(m.trajectory[i].pose.y()))
-        e["trajectory"].push_back({mm(m.trajectory[i].pose.x()), mm(m.trajectory[i].pose.y())});
-    const auto errors = associate(m.trajectory, ds.ground_truth, ds.manifest.gt_max_gap);
-    e["error"] = nlohmann::json::array();
-    std::vector<double> sorted;
-    for (size_t i = 0, s = thin(errors.size()); i < errors.size(); ++i) {
-      sorted.push_back(errors[i].e2d);
-      if (i % s == 0) e["error"].push_back({mm(errors[i].t - t0), mm(errors[i].e2d)});
-    }
-    std::sort(sorted.begin(), sorted.end());
-    e["cdf"] = nlohmann::json::array();
-    for (size_t i = 0, s = thin(sorted.size()); i < sorted.size(); i += s)
-      e["cdf"].push_back({mm(sorted[i]), mm(static_cast<double>(i + 1) / sorted.size())});
-    if (!sorted.empty()) e["cdf"].push_back({mm(sorted.back()), 1.0});
-    e["rmse_2d"] = number(m.metrics.rmse_2d);
-    j["methods"].push_back(e);
-  }
   return j;
+}
+
+// One method's trajectory, error over time and CDF.
+nlohmann::json methodChart(const data::Dataset& ds, const MethodSummary& m) {
+  const double t0 = ds.ground_truth.empty() ? ds.start_time : ds.ground_truth.front().t;
+  auto thin = [](size_t n) { return std::max<size_t>(1, n / 3000); };
+  nlohmann::json e;
+  e["name"] = m.spec;
+  e["trajectory"] = nlohmann::json::array();
+  for (size_t i = 0, s = thin(m.trajectory.size()); i < m.trajectory.size(); i += s)
+    if (std::isfinite(m.trajectory[i].pose.x()) && std::isfinite(m.trajectory[i].pose.y()))
+      e["trajectory"].push_back({mm(m.trajectory[i].pose.x()), mm(m.trajectory[i].pose.y())});
+  const auto errors = associate(m.trajectory, ds.ground_truth, ds.manifest.gt_max_gap);
+  e["error"] = nlohmann::json::array();
+  std::vector<double> sorted;
+  for (size_t i = 0, s = thin(errors.size()); i < errors.size(); ++i) {
+    sorted.push_back(errors[i].e2d);
+    if (i % s == 0) e["error"].push_back({mm(errors[i].t - t0), mm(errors[i].e2d)});
+  }
+  std::sort(sorted.begin(), sorted.end());
+  e["cdf"] = nlohmann::json::array();
+  for (size_t i = 0, s = thin(sorted.size()); i < sorted.size(); i += s)
+    e["cdf"].push_back({mm(sorted[i]), mm(static_cast<double>(i + 1) / sorted.size())});
+  if (!sorted.empty()) e["cdf"].push_back({mm(sorted.back()), 1.0});
+  e["rmse_2d"] = number(m.metrics.rmse_2d);
+  return e;
+}
+
+// A picture inlined as a data URI, with its caption; empty when the file cannot be read.
+std::string figureHtml(const PlotFile& p, const std::string& plots_dir) {
+  const std::string png = readAll((fs::path(plots_dir) / p.file).string());
+  if (png.empty()) return {};
+  return "<figure><img alt=\"" + escapeHtml(p.caption) + "\" src=\"data:image/png;base64," +
+         base64(png) + "\"><figcaption>" + escapeHtml(p.caption) + " (plots/" + escapeHtml(p.file) +
+         ")</figcaption></figure>\n";
 }
 
 // Builds the charts, makes the trajectory zoomable (wheel: zoom about the cursor; drag: pan;
@@ -242,8 +253,30 @@ const char* kScript = R"JS(
 std::string formatHtmlReport(const data::Dataset& dataset,
                              const std::vector<MethodSummary>& methods, const std::string& table,
                              const std::vector<PlotFile>& plots, const std::string& plots_dir,
-                             const std::string& chart_js) {
+                             const std::string& chart_js, int jobs) {
   const std::string library = readAll(chart_js);
+  // Inlining each picture (base 64) and each method's chart series are independent: they are
+  // made on `jobs` threads, then placed in order.
+  // The charts' JSON is the dataset's part with "methods": [...] spliced in, each method's
+  // part written as text on its own thread.
+  std::vector<std::string> figures(plots.size());
+  std::vector<std::string> method_charts(methods.size());
+  std::string charts, library_script;
+  parallelFor(2 + plots.size() + methods.size(), jobs, [&](size_t k) {
+    if (k == 0)
+      charts = scriptSafe(chartData(dataset).dump());
+    else if (k == 1)
+      library_script = scriptSafe(library);
+    else if (k < 2 + plots.size())
+      figures[k - 2] = figureHtml(plots[k - 2], plots_dir);
+    else
+      method_charts[k - 2 - plots.size()] =
+          scriptSafe(methodChart(dataset, methods[k - 2 - plots.size()]).dump());
+  });
+  charts.pop_back();  // the closing brace
+  charts += charts.size() > 1 ? ",\"methods\":[" : "\"methods\":[";
+  for (size_t i = 0; i < method_charts.size(); ++i) charts += (i ? "," : "") + method_charts[i];
+  charts += "]}";
   std::ostringstream h;
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>uwbloc: "
     << escapeHtml(dataset.name) << "</title>\n<style>\n"
@@ -299,19 +332,19 @@ std::string formatHtmlReport(const data::Dataset& dataset,
     h << "<canvas id=\"errors\"></canvas>\n<canvas id=\"cdf\"></canvas>\n";
 
   h << "<h2>Pictures</h2>\n";
-  for (const auto& p : plots) {
-    const std::string png = readAll((fs::path(plots_dir) / p.file).string());
-    if (png.empty()) continue;
-    h << "<figure><img alt=\"" << escapeHtml(p.caption) << "\" src=\"data:image/png;base64,"
-      << base64(png) << "\"><figcaption>" << escapeHtml(p.caption) << " (plots/"
-      << escapeHtml(p.file) << ")</figcaption></figure>\n";
-  }
-  h << "<h2>Full table</h2>\n<pre>" << escapeHtml(table) << "</pre>\n";
-  h << "<script type=\"application/json\" id=\"report-data\">"
-    << scriptSafe(chartData(dataset, methods).dump()) << "</script>\n";
-  if (!library.empty()) h << "<script>" << scriptSafe(library) << "</script>\n";
-  h << "<script>" << kScript << "</script>\n</body></html>\n";
-  return h.str();
+  // The pictures make most of the page (megabytes): appended once to a buffer of the final size.
+  std::string page = h.str();
+  size_t size = page.size() + charts.size() + library_script.size() + table.size() * 2 + 65536;
+  for (const auto& f : figures) size += f.size();
+  page.reserve(size);
+  for (const auto& f : figures) page += f;
+  page += "<h2>Full table</h2>\n<pre>" + escapeHtml(table) + "</pre>\n";
+  page += "<script type=\"application/json\" id=\"report-data\">";
+  page += charts;
+  page += "</script>\n";
+  if (!library.empty()) page += "<script>" + library_script + "</script>\n";
+  page += std::string("<script>") + kScript + "</script>\n</body></html>\n";
+  return page;
 }
 
 }  // namespace uwbloc::eval

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
@@ -634,15 +635,25 @@ std::vector<PlotFile> writePlots(const std::string& plots_dir, const data::Datas
   data::ensureDirectory(dir.string());
   const loc::Rect extent = worldExtent(dataset, methods);
   const std::string world = dataset.map ? "on the map" : "on a blank grid (no map)";
-  const cv::Mat world_canvas = worldCanvas(dataset, extent);
-  // Each picture is a task; they run on `jobs` threads and are listed in this order.
+  // The map canvas is drawn once, by the first picture that needs it; meanwhile the other
+  // threads draw the pictures without a map.
+  std::once_flag canvas_drawn;
+  cv::Mat world_canvas_storage;
+  auto world_canvas = [&]() -> const cv::Mat& {
+    std::call_once(canvas_drawn, [&] { world_canvas_storage = worldCanvas(dataset, extent); });
+    return world_canvas_storage;
+  };
+  // Each picture is a task; they are listed in this order, and run on `jobs` threads in the
+  // order of `run_order`: first the picture of every method, then those without a map, then
+  // the rest.
   using Task = std::function<std::optional<PlotFile>()>;
   std::vector<Task> tasks;
+  std::vector<size_t> on_map;
   tasks.push_back([&]() -> std::optional<PlotFile> {
     std::vector<const MethodSummary*> all;
     std::vector<size_t> index;
     for (size_t i = 0; i < methods.size(); ++i) all.push_back(&methods[i]), index.push_back(i);
-    trajectoryPlot(dir / "trajectories.png", dataset, world_canvas, all, index, extent,
+    trajectoryPlot(dir / "trajectories.png", dataset, world_canvas(), all, index, extent,
                    "Trajectories " + world + ": " + dataset.name);
     return PlotFile{"trajectories.png", "The reference and every method " + world};
   });
@@ -663,8 +674,9 @@ std::vector<PlotFile> writePlots(const std::string& plots_dir, const data::Datas
   });
   for (size_t i = 0; i < methods.size(); ++i) {
     const std::string label = fileLabel(methods[i].spec);
+    on_map.push_back(tasks.size());
     tasks.push_back([&, i, label]() -> std::optional<PlotFile> {
-      trajectoryPlot(dir / ("trajectory_" + label + ".png"), dataset, world_canvas, {&methods[i]},
+      trajectoryPlot(dir / ("trajectory_" + label + ".png"), dataset, world_canvas(), {&methods[i]},
                      {i}, extent, methods[i].spec + " " + world);
       return PlotFile{"trajectory_" + label + ".png", methods[i].spec + " and the reference"};
     });
@@ -674,8 +686,12 @@ std::vector<PlotFile> writePlots(const std::string& plots_dir, const data::Datas
         return PlotFile{"error_" + label + ".png", methods[i].spec + ": planar error over time"};
       });
   }
+  std::vector<size_t> run_order{0};
+  for (size_t k = 1; k < tasks.size(); ++k)
+    if (std::find(on_map.begin(), on_map.end(), k) == on_map.end()) run_order.push_back(k);
+  run_order.insert(run_order.end(), on_map.begin(), on_map.end());
   std::vector<std::optional<PlotFile>> done(tasks.size());
-  parallelFor(tasks.size(), jobs, [&](size_t k) { done[k] = tasks[k](); });
+  parallelFor(tasks.size(), jobs, [&](size_t k) { done[run_order[k]] = tasks[run_order[k]](); });
   std::vector<PlotFile> out;
   for (auto& d : done)
     if (d) out.push_back(std::move(*d));

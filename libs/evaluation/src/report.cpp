@@ -459,7 +459,8 @@ void writeRunFiles(const std::string& out_dir, const data::Dataset& dataset,
   std::vector<PlotFile> plots;
   if (info.plots) plots = writePlots((dir / "plots").string(), dataset, methods, info.jobs);
   data::writeFileAtomic((dir / "report.html").string(),
-                        formatHtmlReport(dataset, methods, table, plots, (dir / "plots").string()));
+                        formatHtmlReport(dataset, methods, table, plots, (dir / "plots").string(),
+                                         kChartJsPath, info.jobs));
   for (const auto& [name, contents] : info.extra_files)
     data::writeFileAtomic((dir / name).string(), contents);
 

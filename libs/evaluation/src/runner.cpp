@@ -301,6 +301,49 @@ MethodSummary evaluateMethod(const data::Dataset& dataset, const std::string& sp
   return summarise(dataset, spec, runs);
 }
 
+namespace {
+
+// The order in which the runs (method x seed) are taken. In order on one thread. On several,
+// longest first, so that no long run starts last while the other threads idle: every method's
+// first seed is taken first, in the methods' order; after that, each free thread takes a
+// remaining seed of the method whose first seed took longest (a method whose first seed is
+// still running counts as the longest).
+class RunQueue {
+ public:
+  RunQueue(size_t methods, size_t per, bool longest_first)
+      : per_(per), longest_first_(longest_first), first_(methods, -1.0), taken_(methods, 0) {}
+
+  std::pair<size_t, size_t> take() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    size_t pick = taken_.size();
+    if (!longest_first_) {
+      for (pick = 0; taken_[pick] == per_;) ++pick;
+    } else if (next_first_ < taken_.size()) {
+      pick = next_first_++;
+    } else {
+      auto cost = [&](size_t m) { return first_[m] < 0.0 ? HUGE_VAL : first_[m]; };
+      for (size_t m = 0; m < taken_.size(); ++m)
+        if (taken_[m] < per_ && (pick == taken_.size() || cost(m) > cost(pick))) pick = m;
+    }
+    return {pick, taken_[pick]++};
+  }
+
+  void finished(size_t method, size_t run, std::chrono::steady_clock::duration took) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (run == 0) first_[method] = std::chrono::duration<double>(took).count();
+  }
+
+ private:
+  std::mutex mutex_;
+  size_t per_;
+  bool longest_first_;
+  std::vector<double> first_;  ///< seconds of each method's first seed; -1 until known
+  std::vector<size_t> taken_;  ///< seeds taken so far, per method
+  size_t next_first_ = 0;      ///< methods whose first seed has been taken
+};
+
+}  // namespace
+
 std::vector<MethodSummary> evaluateMethods(const data::Dataset& dataset,
                                            const std::vector<MethodJob>& methods, int repeat,
                                            uint64_t seed, int jobs, const ProgressFn& progress,
@@ -309,11 +352,15 @@ std::vector<MethodSummary> evaluateMethods(const data::Dataset& dataset,
   const size_t per = static_cast<size_t>(repeat), total = methods.size() * per;
   std::vector<std::vector<ScoredRun>> runs(methods.size(), std::vector<ScoredRun>(per));
   std::atomic<long> done{0};
-  // Each run lands in its own slot, so the summaries are the same whatever the thread count.
-  parallelFor(total, jobs, [&](size_t k) {
-    const size_t mi = k / per, r = k % per;
+  RunQueue queue(methods.size(), per, jobs > 1);
+  // Each run lands in its own slot, so the summaries are the same whatever the thread count
+  // and whatever the order the runs are taken in.
+  parallelFor(total, jobs, [&](size_t) {
+    const auto [mi, r] = queue.take();
+    const auto start = std::chrono::steady_clock::now();
     runs[mi][r] = runAndScore(dataset, methods[mi].spec, seed + r, r == 0, methods[mi].extra,
                               jobs == 1 ? progress : ProgressFn());
+    queue.finished(mi, r, std::chrono::steady_clock::now() - start);
     const long finished = ++done;
     if (run_done) run_done(finished, static_cast<long>(total), methods[mi].spec);
   });

@@ -28,7 +28,7 @@ std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core
   if (lidar) {
     if (!context.map)
       throw ParamError("this method needs a map: give the manifest's [dataset] map");
-    measurements.push_back(std::make_unique<LidarFieldMeasurement>(*lidar, *context.map));
+    measurements.push_back(std::make_unique<LidarFieldMeasurement>(*lidar, context.map));
   }
   if (uwb)
     measurements.push_back(

@@ -13,7 +13,8 @@ namespace uwbloc::loc {
 
 // ---------------------------------------------------------------- LiDAR likelihood field
 
-LidarFieldMeasurement::LidarFieldMeasurement(const LidarPartParams& params, const OccupancyMap& map)
+LidarFieldMeasurement::LidarFieldMeasurement(const LidarPartParams& params,
+                                             const std::shared_ptr<const OccupancyMap>& map)
     : params_(params), field_(map, params.field) {}
 
 bool LidarFieldMeasurement::take(const Event& event, EstimatorStatistics&) {

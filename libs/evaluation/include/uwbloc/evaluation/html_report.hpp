@@ -19,9 +19,10 @@ inline constexpr const char* kChartJsPath = "/usr/share/javascript/chart.js/char
 /// charts. When the page has loaded, its <body> carries data-report-status="ok" once every
 /// interactive chart has drawn points (or "static" without Chart.js); any JavaScript error sets
 /// it to "error: ...". The browser test (tests/browser/check_report.sh) reads that attribute.
+/// The pictures and the charts' data are prepared on `jobs` threads; the page is the same.
 std::string formatHtmlReport(const data::Dataset& dataset,
                              const std::vector<MethodSummary>& methods, const std::string& table,
                              const std::vector<PlotFile>& plots, const std::string& plots_dir,
-                             const std::string& chart_js = kChartJsPath);
+                             const std::string& chart_js = kChartJsPath, int jobs = 1);
 
 }  // namespace uwbloc::eval

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <vector>
 
 #include "uwbloc/localization/events.hpp"
@@ -23,9 +24,25 @@ struct LikelihoodFieldParams {
   double min_range = 0.05;  ///< rays below this are ignored [m]
 };
 
+/// The per-cell tables of a likelihood field. They depend only on the map and on the model's
+/// sigma_hit, z_hit, z_rand, max_dist and max_range, and are read-only once built.
+struct LikelihoodGrid {
+  double x0 = 0, y0 = 0, res = 0.05;
+  int nx = 0, ny = 0;
+  std::vector<float> log_p;  ///< per cell: log(z_hit N(d) + z_rand / max_range)
+  std::vector<float> dist;   ///< per cell: distance to the nearest occupied cell [m]
+  double log_p_far = 0.0;    ///< the same beyond max_dist and outside the map
+};
+
 class LikelihoodField {
  public:
+  /// Builds the tables for this field alone.
   LikelihoodField(const OccupancyMap& map, const LikelihoodFieldParams& params);
+  /// Shares the tables with every other field built on the same map with the same model: the
+  /// tables are built once per (map, model) while the map lives, and every run of a `compare`
+  /// on that map, serial or concurrent, reads the same copy. The map must not change after.
+  LikelihoodField(const std::shared_ptr<const OccupancyMap>& map,
+                  const LikelihoodFieldParams& params);
 
   /// Distance [m] from (x, y) to the nearest occupied cell (max_dist outside the map).
   double distance(double x, double y) const;
@@ -37,14 +54,12 @@ class LikelihoodField {
   /// Fraction of the stored scan's endpoints within `tolerance` of an obstacle, seen from
   /// (x, y, theta): how well the scan fits the map there (0 without endpoints).
   double fitFraction(double x, double y, double theta, double tolerance) const;
+  /// True when both read the same tables (built once for their map and model).
+  bool sharesTables(const LikelihoodField& other) const { return grid_ == other.grid_; }
 
  private:
   LikelihoodFieldParams params_;
-  double x0_ = 0, y0_ = 0, res_ = 0.05;
-  int nx_ = 0, ny_ = 0;
-  std::vector<float> log_p_;  ///< per cell: log(z_hit N(d) + z_rand / max_range)
-  std::vector<float> dist_;   ///< per cell: distance to the nearest occupied cell
-  double log_p_far_ = 0.0;
+  std::shared_ptr<const LikelihoodGrid> grid_;
   std::vector<double> ex_, ey_;  ///< current scan endpoints in the robot frame
 };
 

@@ -1,7 +1,7 @@
-// lidar-icp: LiDAR odometry by ICP (MRPT's CICP) of each scan against the last keyframe scan,
-// seeded with the odometry accumulated since that keyframe. A new keyframe starts when the robot
-// has moved `kf_dist` or turned `kf_angle` from the last one: aligning every scan to its
-// predecessor would add each alignment's small error (a few mrad) at the scan rate. It still
+// lidar-icp: LiDAR odometry by ICP (the classic loop of MRPT's CICP) of each scan against the last
+// keyframe scan, seeded with the odometry accumulated since that keyframe. A new keyframe starts
+// when the robot has moved `kf_dist` or turned `kf_angle` from the last one: aligning every scan to
+// its predecessor would add each alignment's small error (a few mrad) at the scan rate. It still
 // accumulates error like any odometry: this is the PF-IBAS paper's LiDAR-only baseline.
 #pragma once
 

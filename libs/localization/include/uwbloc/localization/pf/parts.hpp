@@ -215,7 +215,8 @@ class PosteriorStep {
 /// The LiDAR likelihood field on the map (needs a map); builds corner landmarks on request.
 class LidarFieldMeasurement final : public EpochMeasurement {
  public:
-  LidarFieldMeasurement(const LidarPartParams& params, const OccupancyMap& map);
+  LidarFieldMeasurement(const LidarPartParams& params,
+                        const std::shared_ptr<const OccupancyMap>& map);
   bool take(const Event& event, EstimatorStatistics& stats) override;
   void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
   double addLogLikelihood(double l, double x, double y, double theta) const override;
