@@ -188,6 +188,42 @@ TEST(RangeSlam, RecoversPosesWithFixedAnchors) {
               std::sqrt((*cov)(1, 1)), std::sqrt((*cov)(2, 2)));
 }
 
+TEST(RangeSlam, SelectedInversionGivesCeresMarginals) {
+  // Every kind of block at once: poses, estimated anchors (the first pose and anchor held),
+  // biases, a landmark, and the Cauchy loss over NLOS ranges.
+  const Synthetic s(12, 0.1);
+  RangeGraph g = s.graph(s.anchors);
+  const Eigen::Vector2d mark(12.0, 9.0);
+  const int l = g.addLandmark(mark + Eigen::Vector2d(0.3, -0.2));
+  for (size_t k : {size_t{5}, size_t{60}, size_t{150}}) {
+    const Eigen::Vector3d& p = s.truth[k];
+    const double c = std::cos(p.z()), sn = std::sin(p.z());
+    const Eigen::Vector2d d = mark - p.head<2>();
+    g.addLandmarkObservation(static_cast<int>(k), l,
+                             {c * d.x() + sn * d.y(), -sn * d.x() + c * d.y()}, 0.05);
+  }
+  RangeGraphParams params;
+  params.estimate_anchors = true;
+  params.estimate_bias = true;
+  params.odometry_sigma = {0.02, 0.02, 0.005};
+  g.build(params);
+  ASSERT_TRUE(g.solve().usable);
+  const auto selected = g.poseCovariances();  // marginals.hpp
+  ASSERT_EQ(selected.size(), g.poses());
+  EXPECT_EQ(selected[0], Eigen::Matrix3d::Zero());  // held
+  double worst = 0.0;
+  for (size_t k = 1; k < g.poses(); k += 7) {
+    const auto ceres_cov = g.poseCovariance(static_cast<int>(k));  // ceres::Covariance
+    ASSERT_TRUE(ceres_cov.has_value());
+    worst = std::max(worst, (selected[k] - *ceres_cov).norm() / ceres_cov->norm());
+  }
+  std::printf(
+      "[ GRAPH    ] selected inversion against ceres::Covariance: worst relative "
+      "difference %.2e\n",
+      worst);
+  EXPECT_LT(worst, 1e-8);
+}
+
 TEST(RangeSlam, LandmarkObservationsCloseTheLoop) {
   // Odometry only, plus one landmark seen from the first and the last pose of a loop.
   const Synthetic s(11, 0.0);

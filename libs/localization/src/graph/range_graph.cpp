@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "cost_functions.hpp"
+#include "uwbloc/localization/graph/marginals.hpp"
 
 namespace uwbloc::loc::graph {
 
@@ -87,18 +88,16 @@ std::optional<Eigen::Matrix3d> RangeGraph::poseCovariance(int pose) {
 std::vector<Eigen::Matrix3d> RangeGraph::poseCovariances() {
   std::vector<Eigen::Matrix3d> out(poses_.size(), Eigen::Matrix3d::Zero());
   if (!problem_) return {};
-  std::vector<std::pair<const double*, const double*>> blocks;
-  for (auto& p : poses_)
-    if (!problem_->IsParameterBlockConstant(p.data())) blocks.emplace_back(p.data(), p.data());
-  ceres::Covariance::Options options;
-  ceres::Covariance covariance(options);
-  if (!covariance.Compute(blocks, problem_.get())) return {};
-  for (size_t i = 0; i < poses_.size(); ++i) {
-    if (problem_->IsParameterBlockConstant(poses_[i].data())) continue;
-    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
-    if (covariance.GetCovarianceBlockInTangentSpace(poses_[i].data(), poses_[i].data(), c.data()))
-      out[i] = c;
-  }
+  std::vector<double*> blocks;
+  std::vector<size_t> index;
+  for (size_t i = 0; i < poses_.size(); ++i)
+    if (!problem_->IsParameterBlockConstant(poses_[i].data())) {
+      blocks.push_back(poses_[i].data());
+      index.push_back(i);
+    }
+  const auto marginals = marginalCovariances(*problem_, blocks);
+  if (!marginals) return {};
+  for (size_t k = 0; k < index.size(); ++k) out[index[k]] = (*marginals)[k];
   return out;
 }
 
@@ -119,10 +118,11 @@ void RangeGraph::build(const RangeGraphParams& params) {
       loss = new ceres::HuberLoss(params_.loss_scale);
     else if (params_.loss == RobustLoss::kCauchy)
       loss = new ceres::CauchyLoss(params_.loss_scale);
-    p.AddResidualBlock(RangeCost::Create(r.range, r.tag, params_.range_sigma * std::sqrt(r.variance_scale)), loss,
-                       poses_[static_cast<size_t>(r.pose)].data(),
-                       anchors_[static_cast<size_t>(r.anchor)].position.data(),
-                       &biases_[static_cast<size_t>(r.anchor)]);
+    p.AddResidualBlock(
+        RangeCost::Create(r.range, r.tag, params_.range_sigma * std::sqrt(r.variance_scale)), loss,
+        poses_[static_cast<size_t>(r.pose)].data(),
+        anchors_[static_cast<size_t>(r.anchor)].position.data(),
+        &biases_[static_cast<size_t>(r.anchor)]);
   }
   const Eigen::Matrix3d default_sqrt_information =
       params_.odometry_sigma.cwiseInverse().asDiagonal();
@@ -225,34 +225,28 @@ double RangeGraph::lossConsistency() const {
 std::optional<double> RangeGraph::estimateRangeSigma() {
   if (!problem_ || ranges_.empty()) return std::nullopt;
   ceres::Problem& p = *problem_;
-  std::vector<std::pair<const double*, const double*>> blocks;
+  // The marginal covariances of the free poses and biases (marginals.hpp).
+  std::vector<double*> blocks;
+  std::vector<size_t> pose_index;
   int free_bias = 0;
-  for (auto& x : poses_)
-    if (!p.IsParameterBlockConstant(x.data())) blocks.emplace_back(x.data(), x.data());
+  for (size_t i = 0; i < poses_.size(); ++i)
+    if (!p.IsParameterBlockConstant(poses_[i].data())) {
+      blocks.push_back(poses_[i].data());
+      pose_index.push_back(i);
+    }
   for (auto& b : biases_)
     if (!p.IsParameterBlockConstant(&b)) {
-      blocks.emplace_back(&b, &b);
+      blocks.push_back(&b);
       ++free_bias;
     }
-  ceres::Covariance::Options options;
-  options.num_threads = params_.threads > 0 ? params_.threads : 1;
-  ceres::Covariance covariance(options);
-  if (!covariance.Compute(blocks, &p)) return std::nullopt;
+  const auto marginals = marginalCovariances(p, blocks);
+  if (!marginals) return std::nullopt;
   std::vector<Eigen::Matrix3d> pose_cov(poses_.size(), Eigen::Matrix3d::Zero());
-  for (size_t i = 0; i < poses_.size(); ++i) {
-    if (p.IsParameterBlockConstant(poses_[i].data())) continue;
-    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
-    if (!covariance.GetCovarianceBlockInTangentSpace(poses_[i].data(), poses_[i].data(), c.data()))
-      return std::nullopt;
-    pose_cov[i] = c;
-  }
+  for (size_t k = 0; k < pose_index.size(); ++k) pose_cov[pose_index[k]] = (*marginals)[k];
   double bias_prior_leverage = 0.0;
-  for (auto& b : biases_) {
-    if (p.IsParameterBlockConstant(&b)) continue;
-    double v = 0.0;
-    if (!covariance.GetCovarianceBlock(&b, &b, &v)) return std::nullopt;
-    bias_prior_leverage += v / (params_.bias_prior_sigma * params_.bias_prior_sigma);
-  }
+  for (size_t k = pose_index.size(); k < blocks.size(); ++k)
+    bias_prior_leverage +=
+        (*marginals)[k](0, 0) / (params_.bias_prior_sigma * params_.bias_prior_sigma);
   // The range group. Leverage of one edge: w J Sigma J^T / sigma^2 (pose part); a free bias adds
   // about one leverage to its anchor's edges (less its prior's share).
   const double sigma = params_.range_sigma;
