@@ -153,11 +153,20 @@ void cubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M, K>& m, con
 template <int N, int M, int K>
 double hinfCubatureUpdate(Vec<N>& x, Mat<N, N>& p, const PointMoments<N, M, K>& m, const Vec<M>& y,
                           const Mat<M, M>& r, double ratio, const Mat<N, N>& ltl) {
-  const Mat<N, N> p_inv = p.inverse();
+  // P and the information are symmetric positive definite: inverted through their Cholesky
+  // factors (LU where rounding has made one indefinite), and only the largest eigenvalue is
+  // needed, without eigenvectors.
+  auto spdInverse = [](const Mat<N, N>& a) -> Mat<N, N> {
+    Eigen::LLT<Mat<N, N>> llt(a);
+    return llt.info() == Eigen::Success ? Mat<N, N>(llt.solve(Mat<N, N>::Identity()))
+                                        : Mat<N, N>(a.inverse());
+  };
+  const Mat<N, N> p_inv = spdInverse(p);
   const Mat<M, N> h = (p_inv * m.pxz).transpose();  // statistical linearisation
   const Mat<N, N> info = p_inv + h.transpose() * r.inverse() * h;
-  const Mat<N, N> p_ckf = info.inverse();
-  Eigen::SelfAdjointEigenSolver<Mat<N, N>> eig(0.5 * (ltl * p_ckf * ltl + ltl * p_ckf.transpose() * ltl));
+  const Mat<N, N> p_ckf = spdInverse(info);
+  const Eigen::SelfAdjointEigenSolver<Mat<N, N>> eig(
+      0.5 * (ltl * p_ckf * ltl + ltl * p_ckf.transpose() * ltl), Eigen::EigenvaluesOnly);
   const double gamma = ratio * std::sqrt(std::max(eig.eigenvalues().maxCoeff(), 0.0));
   const Mat<N, N> bracket = info - ltl / (gamma * gamma);
   Eigen::LLT<Mat<N, N>> llt(0.5 * (bracket + bracket.transpose()));
