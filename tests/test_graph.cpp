@@ -13,6 +13,7 @@
 #include "uwbloc/dataset/pose_graph_file.hpp"
 #include "uwbloc/localization/events.hpp"
 #include "uwbloc/localization/graph/range_graph.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 using namespace uwbloc;
 using namespace uwbloc::loc::graph;
@@ -97,11 +98,11 @@ struct Synthetic {
 
 TEST(GraphCosts, JacobiansMatchNumeric) {
   double pose[3] = {1.2, -0.7, 2.9}, pose2[3] = {1.5, -0.4, -3.0}, anchor[3] = {4.0, 2.0, 2.2},
-         bias[1] = {0.3};
+         bias[1] = {0.3}, scale[1] = {0.07};
   const ceres::AutoDiffManifold<PosePlus, 3, 3> pose_manifold;
   std::unique_ptr<ceres::CostFunction> range(RangeCost::Create(5.1, {0.16, 0.05, 1.1}, 0.1));
-  std::vector<const ceres::Manifold*> m1{&pose_manifold, nullptr, nullptr};
-  checkGradients(range.get(), {pose, anchor, bias}, &m1, "range");
+  std::vector<const ceres::Manifold*> m1{&pose_manifold, nullptr, nullptr, nullptr};
+  checkGradients(range.get(), {pose, anchor, bias, scale}, &m1, "range");
   std::unique_ptr<ceres::CostFunction> rel(
       RelativePoseCost::Create(Eigen::Vector3d(0.3, 0.1, 0.2), Eigen::Vector3d(0.05, 0.05, 0.02)));
   std::vector<const ceres::Manifold*> m2{&pose_manifold, &pose_manifold};
@@ -117,12 +118,16 @@ TEST(GraphCosts, JacobiansMatchNumeric) {
   std::unique_ptr<ceres::CostFunction> prior(PriorCost<3>::Create({4, 2, 2}, {0.5, 0.5, 0.5}));
   checkGradients(prior.get(), {anchor}, nullptr, "prior");
   // Hand-computed range residual: pose at the origin facing +x, tag 0.16 ahead, anchor 3 m
-  // ahead at the tag's height: predicted 2.84, measured 3.0, bias 0.06 -> (3 - 2.84 - 0.06)/0.1.
-  double p0[3] = {0, 0, 0}, a0[3] = {3, 0, 1.1}, b0[1] = {0.06}, r = 0;
-  const double* ps[3] = {p0, a0, b0};
+  // ahead at the tag's height: predicted 2.84, measured 3.0, bias 0.06 -> (3 - 2.84 - 0.06)/0.1;
+  // with a scale of +5 %: (3 - 1.05 * 2.84 - 0.06) / 0.1 = -0.42.
+  double p0[3] = {0, 0, 0}, a0[3] = {3, 0, 1.1}, b0[1] = {0.06}, s0[1] = {0.0}, r = 0;
+  const double* ps[4] = {p0, a0, b0, s0};
   range.reset(RangeCost::Create(3.0, {0.16, 0.0, 1.1}, 0.1));
   range->Evaluate(ps, &r, nullptr);
   EXPECT_NEAR(r, 1.0, 1e-12);
+  s0[0] = 0.05;
+  range->Evaluate(ps, &r, nullptr);
+  EXPECT_NEAR(r, -0.42, 1e-12);
 }
 
 TEST(GraphCosts, RelativePoseWithAFullInformationMatrix) {
@@ -222,6 +227,74 @@ TEST(RangeSlam, SelectedInversionGivesCeresMarginals) {
       "difference %.2e\n",
       worst);
   EXPECT_LT(worst, 1e-8);
+}
+
+// Ranges 5 % long (a clock error common to the radios), on a field where each anchor is seen
+// from 5 to 70 m: with a bias per anchor free (as the scale test reads them), the residuals still
+// grow with the distance; the test sees it, and a free scale finds it. A bias of 0.5 m on every
+// anchor, which also lengthens every range, is no scale. (Where the robot keeps about the same
+// distance to each anchor, as on Synthetic's loop, a scale is a bias per anchor, and the biases
+// take it.)
+TEST(RangeSlam, ARangeScaleStandsOutAndIsFound) {
+  const std::vector<uwb::Anchor> anchors{
+      {1, {0, 0, 1.0}}, {2, {60, 0, 1.0}}, {3, {60, 40, 1.0}}, {4, {0, 40, 1.0}}};
+  // A lawn-mower path: 4 rows of 50 m, 1 m apart poses, heading along the row.
+  std::vector<Eigen::Vector3d> truth;
+  for (int row = 0; row < 4; ++row)
+    for (int k = 0; k <= 50; ++k) {
+      const bool east = row % 2 == 0;
+      truth.emplace_back(east ? 5.0 + k : 55.0 - k, 5.0 + 10.0 * row, east ? 0.0 : M_PI);
+    }
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> g(0, 1);
+  auto build = [&](double scale, double bias) {
+    RangeGraph gr;
+    gr.setAnchors(anchors);
+    Eigen::Vector3d dr = truth[0];
+    gr.addPose(dr);
+    for (size_t k = 1; k < truth.size(); ++k) {
+      Eigen::Vector3d d = loc::relativePose(truth[k - 1], truth[k]);
+      d += Eigen::Vector3d(0.01 * g(rng), 0.01 * g(rng), 0.002 * g(rng));
+      dr = loc::composePose(dr, d);
+      gr.addPose(dr);
+      gr.addOdometry(static_cast<int>(k - 1), static_cast<int>(k), d);
+    }
+    for (size_t k = 0; k < truth.size(); ++k)
+      for (const auto& a : anchors) {
+        const double d = (Eigen::Vector3d(truth[k].x(), truth[k].y(), 0.0) - a.position).norm();
+        gr.addRange(static_cast<int>(k), a.id, (1.0 + scale) * d + bias + 0.1 * g(rng),
+                    Eigen::Vector3d::Zero());
+      }
+    return gr;
+  };
+  RangeGraphParams params;
+  params.odometry_sigma = {0.01, 0.01, 0.002};
+  params.range_sigma = 0.5;
+  for (const bool scaled : {true, false}) {
+    RangeGraph gr = scaled ? build(0.05, 0.0) : build(0.0, 0.5);
+    auto with_biases = params;  // the evidence is read with a bias per anchor free
+    with_biases.estimate_bias = true;
+    gr.build(with_biases);
+    ASSERT_TRUE(gr.solve().usable);
+    const auto e = gr.scaleEvidence();
+    std::printf(
+        "[ GRAPH    ] %s: slope %.4f +- %.4f, explains %.2f of the variance; halves %.4f, "
+        "%.4f\n",
+        scaled ? "ranges 5 % long" : "every anchor +0.5 m", e.slope[0], e.slope_std[0],
+        e.explained[0], e.slope[1], e.slope[2]);
+    EXPECT_EQ(loc::scaleStandsOut(e), scaled);
+  }
+  RangeGraph gr = build(0.05, 0.0);
+  params.estimate_scale = true;
+  gr.build(params);
+  ASSERT_TRUE(gr.solve().usable);
+  double se = 0;
+  for (size_t k = 0; k < truth.size(); ++k)
+    se += (gr.pose(k).head<2>() - truth[k].head<2>()).squaredNorm();
+  std::printf("[ GRAPH    ] scale found %+.4f (true +0.05), pose rmse %.4f m\n", gr.scale(),
+              std::sqrt(se / truth.size()));
+  EXPECT_NEAR(gr.scale(), 0.05, 0.003);
+  EXPECT_LT(std::sqrt(se / truth.size()), 0.1);
 }
 
 TEST(RangeSlam, LandmarkObservationsCloseTheLoop) {

@@ -96,11 +96,14 @@ TEST(Plaza, GraphSmoothingBeatsDeadReckoningAndMultilateration) {
   EXPECT_LT(graph.metrics.rmse_2d, gn.metrics.rmse_2d);
 }
 
-// CMU Plaza2 with defaults only: sigma=auto finds the range std, bias=auto frees a bias per
-// beacon, and each estimated bias lies within 0.5 m of that beacon's median measured offset
-// (range minus the distance from the interpolated reference). Measured: 0.600 m; the issue's
-// target of 0.40 m is not reached (the best hand-set sigma gives 0.527 m).
-TEST(Plaza, GraphDefaultsEstimateNoiseAndBias) {
+// CMU Plaza2 with defaults only. Its ranges read 6.9 % long (every beacon alike: the offset
+// grows with the distance, from about 0.3 m at 5 m to 5.5 m at 80 m). scale=auto sees the
+// residuals grow with the distance in both halves of the run and frees a range scale;
+// sigma=auto then finds the std that is left (about 0.57 m). The model's offset of each range,
+// scale x true distance + bias, has a median within 0.5 m of the beacon's median measured offset
+// (range minus the distance from the interpolated reference), and the path meets the issue's
+// 0.40 m. Measured: 0.214 m (0.600 m before the scale, with a bias per beacon).
+TEST(Plaza, GraphDefaultsEstimateRangeScaleNoiseAndBias) {
   const auto src = test::sharedData("plaza_cmu_range_odometry");
   UWBLOC_REQUIRE_SHARED_DATA(src);
   const auto out = test::scratchDir();
@@ -108,23 +111,32 @@ TEST(Plaza, GraphDefaultsEstimateNoiseAndBias) {
   const auto run = eval::runMethod(ds, "graph-uwb-odom", 1);
   const auto errors = eval::associate(run.trajectory, ds.ground_truth);
   const double rmse = eval::computeMetrics(errors, run.trajectory, ds.ground_truth).rmse_2d;
-  std::printf("[ PLAZA    ] graph-uwb-odom defaults: rmse_2d %.3f m, model sigma %.3f m\n", rmse,
-              run.statistics.estimated_range_sigma.value_or(-1.0));
-  EXPECT_LT(rmse, 0.65);
-  std::map<int, std::vector<double>> offsets;
+  const double scale = run.statistics.estimated_range_scale.value_or(0.0);
+  std::printf(
+      "[ PLAZA    ] graph-uwb-odom defaults: rmse_2d %.3f m, model sigma %.3f m, range scale "
+      "%+.4f\n",
+      rmse, run.statistics.estimated_range_sigma.value_or(-1.0), scale);
+  EXPECT_LT(rmse, 0.40);
+  ASSERT_TRUE(run.statistics.estimated_range_scale.has_value());
+  EXPECT_NEAR(scale, 0.069, 0.01);
+  std::map<int, std::vector<double>> offsets, modelled;
   for (const auto& e : ds.events)
     if (const auto* r = std::get_if<uwb::Range>(&e))
       if (const auto p = eval::interpolateGroundTruth(ds.ground_truth, r->t, 1.0))
         for (const auto& a : ds.anchors)
-          if (a.id == r->anchor_id)
-            offsets[a.id].push_back(r->range -
-                                    (Eigen::Vector3d(p->x(), p->y(), 0.0) - a.position).norm());
+          if (a.id == r->anchor_id) {
+            const double d = (Eigen::Vector3d(p->x(), p->y(), 0.0) - a.position).norm();
+            offsets[a.id].push_back(r->range - d);
+            modelled[a.id].push_back(scale * d + run.statistics.estimated_noise.at(a.id).bias);
+          }
   ASSERT_EQ(run.statistics.estimated_noise.size(), offsets.size());
   for (const auto& [id, v] : offsets) {
     const double median = eval::quantile(v, 0.5);
-    const double bias = run.statistics.estimated_noise.at(id).bias;
-    std::printf("[ PLAZA    ] beacon %d: estimated bias %+.3f m, median offset %+.3f m\n", id, bias,
-                median);
-    EXPECT_NEAR(bias, median, 0.5) << id;
+    const double model = eval::quantile(modelled[id], 0.5);
+    std::printf(
+        "[ PLAZA    ] beacon %d: bias %+.3f m; model offset %+.3f m, median measured offset "
+        "%+.3f m\n",
+        id, run.statistics.estimated_noise.at(id).bias, model, median);
+    EXPECT_NEAR(model, median, 0.5) << id;
   }
 }

@@ -140,6 +140,7 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
         e["estimated_noise"][std::to_string(anchor)] = {
             {"bias", number(n.bias)}, {"sigma", number(n.sigma)}, {"ranges", n.ranges}};
       if (m.estimated_range_sigma) e["estimated_range_sigma"] = number(*m.estimated_range_sigma);
+      if (m.estimated_range_scale) e["estimated_range_scale"] = number(*m.estimated_range_scale);
     }
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
@@ -297,6 +298,13 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
     char buf[96];
     if (m.contains("estimated_range_sigma")) {
       std::snprintf(buf, sizeof buf, " model sigma %.3f m;", num(m, "estimated_range_sigma"));
+      out << buf;
+    }
+    if (m.contains("estimated_range_scale")) {
+      std::snprintf(buf, sizeof buf, " range scale %+.4f (ranges read %.2f %% %s);",
+                    num(m, "estimated_range_scale"),
+                    100.0 * std::abs(num(m, "estimated_range_scale")),
+                    num(m, "estimated_range_scale") >= 0 ? "long" : "short");
       out << buf;
     }
     for (const auto& [anchor, n] : byAnchor(m["estimated_noise"])) {

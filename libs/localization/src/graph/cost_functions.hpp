@@ -34,17 +34,23 @@ struct PosePlus {
 struct RangeCost {
   RangeCost(double range, const Eigen::Vector3d& tag, double sigma)
       : range_(range), tag_(tag), inv_sigma_(1.0 / sigma) {}
+  /// The residual (z - (1 + scale) d - bias) / sigma: a range measures its distance d times
+  /// 1 + scale (a clock or propagation-speed error common to the radios), plus the anchor's bias.
   template <typename T>
-  bool operator()(const T* pose, const T* anchor, const T* bias, T* residual) const {
+  bool operator()(const T* pose, const T* anchor, const T* bias, const T* scale,
+                  T* residual) const {
     const T c = ceres::cos(pose[2]), s = ceres::sin(pose[2]);
     const T dx = pose[0] + c * tag_.x() - s * tag_.y() - anchor[0];
     const T dy = pose[1] + s * tag_.x() + c * tag_.y() - anchor[1];
     const T dz = T(tag_.z()) - anchor[2];
-    residual[0] = (T(range_) - ceres::sqrt(dx * dx + dy * dy + dz * dz) - bias[0]) * inv_sigma_;
+    residual[0] =
+        (T(range_) - (T(1) + scale[0]) * ceres::sqrt(dx * dx + dy * dy + dz * dz) - bias[0]) *
+        inv_sigma_;
     return true;
   }
   static ceres::CostFunction* Create(double range, const Eigen::Vector3d& tag, double sigma) {
-    return new ceres::AutoDiffCostFunction<RangeCost, 1, 3, 3, 1>(new RangeCost(range, tag, sigma));
+    return new ceres::AutoDiffCostFunction<RangeCost, 1, 3, 3, 1, 1>(
+        new RangeCost(range, tag, sigma));
   }
   const double range_;         ///< measured range [m]
   const Eigen::Vector3d tag_;  ///< tag on the robot (lever arm x, y; height z) [m]

@@ -112,6 +112,7 @@ void RangeGraph::build(const RangeGraphParams& params) {
   for (auto& a : anchors_)
     p.AddParameterBlock(a.position.data(), 3, new ceres::SubsetManifold(3, {2}));
   for (auto& b : biases_) p.AddParameterBlock(&b, 1);
+  p.AddParameterBlock(&scale_, 1);
   for (const auto& r : ranges_) {
     ceres::LossFunction* loss = nullptr;
     if (params_.loss == RobustLoss::kHuber)
@@ -122,7 +123,16 @@ void RangeGraph::build(const RangeGraphParams& params) {
         RangeCost::Create(r.range, r.tag, params_.range_sigma * std::sqrt(r.variance_scale)), loss,
         poses_[static_cast<size_t>(r.pose)].data(),
         anchors_[static_cast<size_t>(r.anchor)].position.data(),
-        &biases_[static_cast<size_t>(r.anchor)]);
+        &biases_[static_cast<size_t>(r.anchor)], &scale_);
+  }
+  if (params_.estimate_scale && !ranges_.empty()) {
+    p.AddResidualBlock(
+        PriorCost<1>::Create(Eigen::Matrix<double, 1, 1>::Zero(),
+                             Eigen::Matrix<double, 1, 1>::Constant(params_.scale_prior_sigma)),
+        nullptr, &scale_);
+  } else {
+    scale_ = 0.0;  // a solve with a scale may have left a value
+    p.SetParameterBlockConstant(&scale_);
   }
   const Eigen::Matrix3d default_sqrt_information =
       params_.odometry_sigma.cwiseInverse().asDiagonal();
@@ -186,7 +196,8 @@ GraphSolution RangeGraph::solve() {
   return out;
 }
 
-double RangeGraph::rangeResidual(const Range& r, Eigen::Vector3d* gradient) const {
+double RangeGraph::rangeResidual(const Range& r, Eigen::Vector3d* gradient,
+                                 double* distance) const {
   const Eigen::Vector3d& x = poses_[static_cast<size_t>(r.pose)];
   const Eigen::Vector3d& a = anchors_[static_cast<size_t>(r.anchor)].position;
   const double c = std::cos(x.z()), s = std::sin(x.z());
@@ -197,9 +208,10 @@ double RangeGraph::rangeResidual(const Range& r, Eigen::Vector3d* gradient) cons
     // d(dist)/d(x, y, theta); the residual's gradient is its negative.
     const double dtheta =
         d.x() * (-s * r.tag.x() - c * r.tag.y()) + d.y() * (c * r.tag.x() - s * r.tag.y());
-    *gradient = -Eigen::Vector3d(d.x(), d.y(), dtheta) / dist;
+    *gradient = -(1.0 + scale_) * Eigen::Vector3d(d.x(), d.y(), dtheta) / dist;
   }
-  return r.range - dist - biases_[static_cast<size_t>(r.anchor)];
+  if (distance) *distance = dist;
+  return r.range - (1.0 + scale_) * dist - biases_[static_cast<size_t>(r.anchor)];
 }
 
 double RangeGraph::lossWeight(double whitened) const {
@@ -239,14 +251,22 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
       blocks.push_back(&b);
       ++free_bias;
     }
+  const bool free_scale = !p.IsParameterBlockConstant(&scale_);
+  if (free_scale) blocks.push_back(&scale_);
   const auto marginals = marginalCovariances(p, blocks);
   if (!marginals) return std::nullopt;
   std::vector<Eigen::Matrix3d> pose_cov(poses_.size(), Eigen::Matrix3d::Zero());
   for (size_t k = 0; k < pose_index.size(); ++k) pose_cov[pose_index[k]] = (*marginals)[k];
+  // A free bias or scale takes about one leverage from the range edges, less its prior's share.
   double bias_prior_leverage = 0.0;
-  for (size_t k = pose_index.size(); k < blocks.size(); ++k)
+  for (size_t k = pose_index.size(); k < pose_index.size() + static_cast<size_t>(free_bias); ++k)
     bias_prior_leverage +=
         (*marginals)[k](0, 0) / (params_.bias_prior_sigma * params_.bias_prior_sigma);
+  if (free_scale) {
+    ++free_bias;
+    bias_prior_leverage +=
+        marginals->back()(0, 0) / (params_.scale_prior_sigma * params_.scale_prior_sigma);
+  }
   // The range group. Leverage of one edge: w J Sigma J^T / sigma^2 (pose part); a free bias adds
   // about one leverage to its anchor's edges (less its prior's share).
   const double sigma = params_.range_sigma;
@@ -267,6 +287,78 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
   const double sigma_new = std::sqrt(weighted_sq / (redundancy * lossConsistency()));
   if (!std::isfinite(sigma_new)) return std::nullopt;
   return sigma_new;
+}
+
+void RangeGraph::restore(const Values& v) {
+  if (v.poses.size() != poses_.size() || v.anchors.size() != anchors_.size() ||
+      v.biases.size() != biases_.size() || v.landmarks.size() != landmarks_.size())
+    throw std::logic_error("RangeGraph::restore() with the values of another graph");
+  // In place: the Ceres problem holds pointers to these vertices.
+  std::copy(v.poses.begin(), v.poses.end(), poses_.begin());
+  for (size_t i = 0; i < anchors_.size(); ++i) anchors_[i].position = v.anchors[i].position;
+  std::copy(v.biases.begin(), v.biases.end(), biases_.begin());
+  scale_ = v.scale;
+  std::copy(v.landmarks.begin(), v.landmarks.end(), landmarks_.begin());
+}
+
+ScaleEvidence RangeGraph::scaleEvidence() const {
+  ScaleEvidence out;
+  if (ranges_.empty()) return out;
+  std::vector<double> e(ranges_.size()), d(ranges_.size());
+  for (size_t i = 0; i < ranges_.size(); ++i) e[i] = rangeResidual(ranges_[i], nullptr, &d[i]);
+  // The robust centre and spread of all residuals, to leave out the NLOS ones.
+  std::vector<double> sorted = e;
+  auto median = [](std::vector<double>& v) {
+    const auto m = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), m, v.end());
+    return *m;
+  };
+  const double centre = median(sorted);
+  for (auto& x : sorted) x = std::abs(x - centre);
+  const double spread = std::max(1.4826 * median(sorted), 1e-6);
+  auto kept = [&](size_t i) { return std::abs(e[i] - centre) <= 3.0 * spread; };
+  // The slope within anchors: each anchor's residuals and distances are centred on their own
+  // means, so that a bias (per anchor, or on every anchor alike) adds nothing to it.
+  const size_t half = ranges_.size() / 2;
+  const size_t anchors = anchors_.size();
+  for (int h = 0; h < 3; ++h) {
+    const size_t begin = h == 2 ? half : 0, end = h == 1 ? half : ranges_.size();
+    std::vector<double> n(anchors, 0.0), sd(anchors, 0.0), se(anchors, 0.0);
+    for (size_t i = begin; i < end; ++i)
+      if (kept(i)) {
+        const auto a = static_cast<size_t>(ranges_[i].anchor);
+        n[a] += 1, sd[a] += d[i], se[a] += e[i];
+      }
+    double sdd = 0, sde = 0, count = 0;
+    for (size_t i = begin; i < end; ++i)
+      if (kept(i)) {
+        const auto a = static_cast<size_t>(ranges_[i].anchor);
+        const double dd = d[i] - sd[a] / n[a], de = e[i] - se[a] / n[a];
+        sdd += dd * dd, sde += dd * de, count += 1;
+      }
+    if (count < 3 || !(sdd > 0)) continue;
+    const double slope = sde / sdd;
+    double ss = 0;
+    for (size_t i = begin; i < end; ++i)
+      if (kept(i)) {
+        const auto a = static_cast<size_t>(ranges_[i].anchor);
+        const double r = (e[i] - se[a] / n[a]) - slope * (d[i] - sd[a] / n[a]);
+        ss += r * r;
+      }
+    double groups = 0;
+    for (double k : n) groups += k > 0;
+    double sww = 0;
+    for (size_t i = begin; i < end; ++i)
+      if (kept(i)) {
+        const auto a = static_cast<size_t>(ranges_[i].anchor);
+        sww += (e[i] - se[a] / n[a]) * (e[i] - se[a] / n[a]);
+      }
+    out.explained[h] = sww > 0 ? slope * slope * sdd / sww : 0.0;
+    out.slope[h] = slope;
+    out.slope_std[h] = std::sqrt(ss / std::max(1.0, count - groups - 1) / sdd);
+    out.ranges[h] = static_cast<long>(count);
+  }
+  return out;
 }
 
 std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {

@@ -124,7 +124,8 @@ std::optional<std::pair<std::string, double>> UwbRangeMeasurement::calibration()
 void UwbRangeMeasurement::calibrate(const EstimatorStatistics& learnt, EstimatorStatistics& stats) {
   const bool biased = params_.bias == BiasMode::kOn || learnt.events.count("range_bias_estimated");
   noise_.learn(learnt.estimated_noise, biased,
-               params_.front.sigma.isAuto() ? learnt.estimated_range_sigma : std::nullopt);
+               params_.front.sigma.isAuto() ? learnt.estimated_range_sigma : std::nullopt,
+               learnt.estimated_range_scale);
   noise_.report(stats);
 }
 
@@ -151,9 +152,9 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   Eigen::RowVector3d j;
   const double d_hat = uwb::predictRange(e.mean, tag, r.anchor, &j);
   const double state_variance = (j * e.covariance * j.transpose())(0, 0);
-  // The test and the likelihood judge the range with its anchor's learnt bias removed: a
-  // consistent bias is not NLOS.
-  const double d = r.measurement.range - noise_.bias(r.measurement.anchor_id);
+  // The test and the likelihood judge the range with its anchor's learnt bias (and the learnt
+  // scale) removed: a consistent bias is not NLOS.
+  const double d = noise_.correct(r.measurement.anchor_id, r.measurement.range);
   // The range's std: the learnt one, widened where an NLOS model doubts the range.
   const double sigma = noise_.sigma() * std::sqrt(r.variance_scale);
   // The pose test: innovation d - d̂ against S = sigma^2 + J P J^T, gated at k sigma.

@@ -71,6 +71,8 @@ struct EstimatorStatistics {
   std::map<int, NoiseEstimate> estimated_noise;
   /// The range std the method ended with, when it estimates one (`sigma=auto`).
   std::optional<double> estimated_range_sigma;
+  /// The range scale learnt from the data, when one stood out: z = (1 + s) d + bias.
+  std::optional<double> estimated_range_scale;
 };
 
 /// Counts one rejection by reason (and by anchor when anchor_id >= 0).

@@ -37,8 +37,22 @@ struct RangeGraphParams {
   double anchor_prior_sigma = 0.5;  ///< [m]
   bool estimate_bias = false;       ///< a range bias per anchor
   double bias_prior_sigma = 5.0;    ///< [m]
+  bool estimate_scale = false;      ///< a range scale common to every anchor: z = (1 + s) d + b
+  double scale_prior_sigma = 0.1;   ///< prior std of s about 0 (a 10 % error is far beyond any)
   int max_iterations = 100;
   int threads = 0;  ///< Ceres threads; 0: every core of the machine
+};
+
+/// The slope of the range residuals (z - (1 + s) d - b) against the distance d within anchors
+/// (each anchor's residuals and distances centred on their own means, so that no bias adds to
+/// it), pooled over the anchors: over all the ranges [0], and over each half of them in the
+/// order added, i.e. in time [1], [2]. What is left of a scale error. Ranges beyond 3 robust
+/// stds of the residuals are left out.
+struct ScaleEvidence {
+  double slope[3] = {0.0, 0.0, 0.0};      ///< least-squares slope [m/m]
+  double slope_std[3] = {0.0, 0.0, 0.0};  ///< its standard error
+  long ranges[3] = {0, 0, 0};             ///< ranges used
+  double explained[3] = {0.0, 0.0, 0.0};  ///< share of the residuals' variance the slope explains
 };
 
 /// Residual statistics of one anchor's range edges after a solve.
@@ -102,6 +116,20 @@ class RangeGraph {
   std::optional<double> estimateRangeSigma();
   /// After solve(): each anchor's range residual statistics (ranges in the order added).
   std::vector<AnchorResiduals> anchorResiduals() const;
+  /// After solve(): the residuals' slope against distance (see ScaleEvidence).
+  ScaleEvidence scaleEvidence() const;
+  /// The values of every vertex (poses, anchors, biases, scale, landmarks), to go back to after
+  /// a trial solve.
+  struct Values {
+    std::vector<Eigen::Vector3d> poses;
+    std::vector<uwb::Anchor> anchors;
+    std::vector<double> biases;
+    double scale = 0.0;
+    std::vector<Eigen::Vector2d> landmarks;
+  };
+  Values values() const { return {poses_, anchors_, biases_, scale_, landmarks_}; }
+  /// Sets the vertices back (the same graph: sizes must match).
+  void restore(const Values& v);
   /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
   void holdPose(int pose);
 
@@ -109,6 +137,7 @@ class RangeGraph {
   Eigen::Vector3d pose(size_t i) const { return poses_[i]; }
   const std::vector<uwb::Anchor>& anchors() const { return anchors_; }
   double bias(size_t anchor_index) const { return biases_[anchor_index]; }
+  double scale() const { return scale_; }
 
  private:
   struct Range {
@@ -126,6 +155,7 @@ class RangeGraph {
   std::vector<uwb::Anchor> anchors_;
   std::vector<Eigen::Vector3d> anchor_prior_;
   std::vector<double> biases_;
+  double scale_ = 0.0;  ///< z = (1 + scale_) d + bias
   std::vector<Range> ranges_;
   std::vector<Odometry> odometry_;
   struct Prior {
@@ -142,8 +172,9 @@ class RangeGraph {
   std::vector<LandmarkObs> landmark_obs_;
   RangeGraphParams params_;
   std::unique_ptr<ceres::Problem> problem_;
-  /// z - distance(pose, anchor) - bias of one range edge, and its gradient in the pose.
-  double rangeResidual(const Range& r, Eigen::Vector3d* gradient) const;
+  /// z - (1 + scale) distance(pose, anchor) - bias of one range edge, and its gradient in the
+  /// pose; `distance` receives the distance.
+  double rangeResidual(const Range& r, Eigen::Vector3d* gradient, double* distance = nullptr) const;
   /// The robust loss's weight rho'(s^2) at a whitened residual s.
   double lossWeight(double whitened) const;
   /// E[w z^2] / E[w] under a standard normal: the robust weights' shrinkage of a variance.

@@ -29,6 +29,7 @@ struct GraphSmootherParams {
   double odom_sigma_theta = 0.005;                      ///< per increment [rad] ...
   double odom_sigma_theta_per_rad = 0.05;               ///< ... plus this per radian turned
   BiasMode bias = BiasMode::kAuto;                      ///< a range bias per anchor
+  BiasMode scale = BiasMode::kAuto;  ///< a range scale common to the anchors: z = (1 + s) d + b
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
   bool estimate_anchors = false;  ///< anchors' x, y with a prior
   double anchor_prior = 0.5;      ///< [m]
@@ -40,7 +41,7 @@ struct GraphSmootherParams {
   bool icp = false;               ///< front-end mode: add ICP relative-pose edges (lidar-icp)
   double icp_sigma_xy = 0.03;     ///< ICP edge std [m]
   double icp_sigma_theta = 0.01;  ///< ICP edge std [rad]
-  bool covariance = false;        ///< batch: fill each pose's covariance (ceres::Covariance)
+  bool covariance = false;        ///< batch: fill each pose's covariance (marginals.hpp)
   bool lagged = true;             ///< window mode: report each vertex once N-2 later ones are in
   int window = 0;                 ///< 0: batch; N: fixed-lag window of N front-end vertices
   double prior_min_xy = 0.02;     ///< floor on a front-end prior's std [m]
@@ -58,6 +59,9 @@ struct GraphSmootherParams {
     v("bias", bias,
       "a range bias per anchor: 0, 1 or auto (when an anchor's median residual exceeds its "
       "residual spread)");
+    v("scale", scale,
+      "a range scale common to every anchor (z = (1 + s) d + bias): 0, 1 or auto (when the "
+      "residuals grow with the distance, alike in both halves of the run)");
     v("noise_rounds", noise_rounds,
       "sigma=auto: variance-component re-estimates of the range std (each a re-solve)");
     v("anchors", estimate_anchors, "self-calibrate the anchors (x, y)");
