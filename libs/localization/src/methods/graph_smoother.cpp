@@ -361,12 +361,12 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
     // The evidence is read with a bias per anchor free: a bias (on one anchor, or on all alike)
     // must not pass for a scale, and where the robot keeps about the same distance to an anchor
     // a scale is a bias, which the biases then take.
-    // That trial solve is then undone.
+    // That trial solve is then undone (and when it fails, no scale is taken).
     const auto before = g.values();
     graph::RangeGraphParams with_biases = p;
     with_biases.estimate_bias = true;
-    if (!solveOnce(g, with_biases)) return;
-    if (scaleStandsOut(g.scaleEvidence())) {
+    g.build(with_biases);
+    if (g.solve().usable && scaleStandsOut(g.scaleEvidence())) {
       ++stats_.events["range_scale_estimated"];
       p.estimate_scale = true;
     }
