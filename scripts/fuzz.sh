@@ -24,12 +24,18 @@ for target in fuzz_ini fuzz_params fuzz_text_readers fuzz_rawlog fuzz_importers;
     | grep -E "stat::number_of_executed_units|stat::average_exec_per_sec|DONE|ERROR|SUMMARY|Test unit written" || true
   # Crashes, leaks, timeouts and out-of-memory are findings; a slow unit (a legal but large
   # input, e.g. 900 000 particles under ASan) is reported and kept, not a failure.
-  if ls build-fuzz/"$target"-{crash,leak,timeout,oom}-* > /dev/null 2>&1; then
-    echo "finding in $target: $(ls build-fuzz/"$target"-{crash,leak,timeout,oom}-* 2> /dev/null)"
+  # (compgen -G tests each pattern on its own: `ls a* b*` fails when any one pattern matches
+  # nothing, which once hid a crash from this check.)
+  findings=()
+  for kind in crash leak timeout oom; do
+    while IFS= read -r f; do findings+=("$f"); done < <(compgen -G "build-fuzz/$target-$kind-*" || true)
+  done
+  if [ "${#findings[@]}" -gt 0 ]; then
+    echo "finding in $target: ${findings[*]}"
     exit 1
   fi
-  if ls build-fuzz/"$target"-slow-unit-* > /dev/null 2>&1; then
-    echo "slow inputs (not failures): $(ls build-fuzz/"$target"-slow-unit-*)"
+  if compgen -G "build-fuzz/$target-slow-unit-*" > /dev/null; then
+    echo "slow inputs (not failures): $(compgen -G "build-fuzz/$target-slow-unit-*" | tr '\n' ' ')"
   fi
 done
 echo "no finding"

@@ -224,6 +224,13 @@ TEST(Lias, ACorruptFileNamesItsLine) {
   test::expectErrorMentions<data::InputError>(
       [&] { data::importLias(uwb, (dir / "out").string()); },
       {"UWB_dynamic_exp_x.csv:2", "expected a time"});
+  // An anchor number too long for an int (found by fuzzing: std::stoi threw out_of_range,
+  // which no caller expects): an error naming the README's line.
+  const auto bad_readme = test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md",
+                                          readme + "| Anchor 22222222222222222222 | 1 | 1 | 1 |\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importLias(uwb, (dir / "out").string()); },
+      {bad_readme + ":12", "Anchor number", "integer id"});
   // Without the README's tables: an error naming the README.
   test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md", "# nothing here\n");
   test::expectErrorMentions<data::InputError>(

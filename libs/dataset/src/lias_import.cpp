@@ -75,7 +75,9 @@ Setup readSetup(const std::string& path, const std::string& section) {
   bool inside = section.empty();
   int pose = -1;
   static const std::regex name(R"((Tag|Anchor|Pose)\s+(\d+))");
+  int line_no = 0;
   while (std::getline(in, line)) {
+    ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (!section.empty() && line.rfind("### ", 0) == 0) {
       inside = line.size() >= section.size() &&
@@ -91,7 +93,7 @@ Setup readSetup(const std::string& path, const std::string& section) {
       if (const auto x = number(cells[i])) v.push_back(*x);
     std::smatch m;
     if (std::regex_match(cells[0], m, name)) {
-      const int k = std::stoi(m[2].str());
+      const int k = parseId(m[2].str(), path, line_no, m[1].str() + " number");
       const std::string kind = m[1].str();
       if (kind == "Pose") {
         pose = k;
@@ -188,7 +190,8 @@ std::vector<MocapRow> readMocap(const std::string& path, ImportSummary& summary)
     }
     const double norm = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (std::abs(norm - 1.0) > 0.05) return void(++summary.skipped["mocap_bad_quaternion"]);
-    if (!rows.empty() && *t <= rows.back().t) return void(++summary.skipped["mocap_time_not_increasing"]);
+    if (!rows.empty() && *t <= rows.back().t)
+      return void(++summary.skipped["mocap_time_not_increasing"]);
     const Eigen::Quaterniond q(v[3] / norm, v[4] / norm, v[5] / norm, v[6] / norm);
     const Eigen::Matrix3d r = q.toRotationMatrix();
     rows.push_back({*t, Eigen::Vector3d(v[0], v[1], v[2]), std::atan2(r(1, 0), r(0, 0))});
@@ -303,8 +306,9 @@ std::optional<StaticName> parseStaticName(const std::string& file) {
   std::smatch m;
   const std::string name = fs::path(file).filename().string();
   if (!std::regex_match(name, m, re)) return std::nullopt;
-  return StaticName{"/" + m[1].str() + "/" + m[2].str(), std::stoi(m[3].str()),
-                    std::stod(m[4].str())};
+  // The numbers are digits only (the pattern), but may be too long for an int.
+  return StaticName{"/" + m[1].str() + "/" + m[2].str(), parseId(m[3].str(), file, 0, "pos"),
+                    parseNumber(m[4].str(), file, 0, "deg")};
 }
 
 }  // namespace
