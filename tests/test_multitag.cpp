@@ -231,6 +231,15 @@ TEST(Lias, ACorruptFileNamesItsLine) {
   test::expectErrorMentions<data::InputError>(
       [&] { data::importLias(uwb, (dir / "out").string()); },
       {bad_readme + ":12", "Anchor number", "integer id"});
+  // Eight anchors, but numbered 1 to 8 (found by fuzzing: anchor 0 was then looked up and not
+  // found): an error naming the README.
+  std::string shifted = "| Tag 0 | 0 | 0 | 0 |\n| Tag 1 | 0 | 0.2 | 0 |\n| Tag 2 | 0.2 | 0 | 0 |\n";
+  for (int a = 1; a <= 8; ++a)
+    shifted += "| Anchor " + std::to_string(a) + " | " + std::to_string(a) + " | 1 | 1 |\n";
+  test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md", shifted);
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importLias(uwb, (dir / "out").string()); },
+      {"README.md", "anchors numbered 0 to 7", "found 1 2 3 4 5 6 7 8"});
   // Without the README's tables: an error naming the README.
   test::writeText(dir / "Planar_Dataset" / "Dynamic" / "README.md", "# nothing here\n");
   test::expectErrorMentions<data::InputError>(

@@ -342,6 +342,15 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
                          : std::string()) +
             ", found " + std::to_string(setup.tags.size()) + " and " +
             std::to_string(setup.anchors.size()));
+  // A row's 24 ranges are anchor k / 3 to tag k % 3: the numbers must be 0-2 and 0-7, once each.
+  std::string ids;
+  for (const auto& a : setup.anchors) ids += " " + std::to_string(a.id);
+  for (int k = 0; k < kAnchors; ++k)
+    if (std::count_if(setup.anchors.begin(), setup.anchors.end(),
+                      [k](const uwb::Anchor& a) { return a.id == k; }) != 1)
+      throwInputError(readme, 0, "expected anchors numbered 0 to 7, once each; found" + ids);
+  for (int k = 0; k < kTags; ++k)
+    if (!setup.tags.count(k)) throwInputError(readme, 0, "expected tags numbered 0 to 2");
   const std::vector<UwbRow> uwb = readUwb(uwb_file, summary);
 
   std::vector<TimedPose> reference;
