@@ -94,10 +94,11 @@ class RangeGraph {
   int addLandmark(const Eigen::Vector2d& initial);
   void addLandmarkObservation(int pose, int landmark, const Eigen::Vector2d& z, double sigma);
   Eigen::Vector2d landmark(size_t i) const { return landmarks_[i]; }
-  /// Marginal covariance of a pose after solve() (ceres::Covariance); nothing if it fails.
+  /// Marginal covariance of one pose after solve(), by ceres::Covariance (the reference the
+  /// selected inversion is tested against); nothing if it fails.
   std::optional<Eigen::Matrix3d> poseCovariance(int pose);
-  /// Marginal covariances of every pose in one ceres::Covariance computation (zero for held
-  /// poses; empty when it fails).
+  /// Marginal covariances of every pose after solve(), by selected inversion (marginals.hpp):
+  /// zero for held poses; empty when it fails.
   std::vector<Eigen::Matrix3d> poseCovariances();
   /// A prior on a pose (e.g. the front-end filter's estimate), std per component.
   void addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma);
