@@ -686,9 +686,11 @@ std::vector<PlotFile> writePlots(const std::string& plots_dir, const data::Datas
         return PlotFile{"error_" + label + ".png", methods[i].spec + ": planar error over time"};
       });
   }
+  std::vector<bool> needs_map(tasks.size(), false);
+  for (size_t k : on_map) needs_map[k] = true;
   std::vector<size_t> run_order{0};
   for (size_t k = 1; k < tasks.size(); ++k)
-    if (std::find(on_map.begin(), on_map.end(), k) == on_map.end()) run_order.push_back(k);
+    if (!needs_map[k]) run_order.push_back(k);
   run_order.insert(run_order.end(), on_map.begin(), on_map.end());
   std::vector<std::optional<PlotFile>> done(tasks.size());
   parallelFor(tasks.size(), jobs, [&](size_t k) { done[run_order[k]] = tasks[run_order[k]](); });

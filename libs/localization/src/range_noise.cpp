@@ -1,6 +1,14 @@
 #include "uwbloc/localization/range_noise.hpp"
 
+#include "uwbloc/localization/graph/range_graph.hpp"
+
 namespace uwbloc::loc {
+
+bool scaleStandsOut(const graph::ScaleEvidence& e) {
+  if (e.ranges[0] < 20 || !(std::abs(e.slope[0]) > 3.0 * e.slope_std[0])) return false;
+  if (!(e.explained[0] >= 0.25)) return false;
+  return std::abs(e.slope[1] - e.slope[2]) < 3.0 * std::hypot(e.slope_std[1], e.slope_std[2]);
+}
 
 void RangeNoiseModel::learn(const std::map<int, NoiseEstimate>& noise, bool use_bias,
                             std::optional<double> sigma, std::optional<double> scale) {

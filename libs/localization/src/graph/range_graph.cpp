@@ -11,6 +11,18 @@
 
 namespace uwbloc::loc::graph {
 
+namespace {
+
+// The median of `v` (the upper one of an even count; 0 when empty).
+double medianOf(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto m = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), m, v.end());
+  return *m;
+}
+
+}  // namespace
+
 RangeGraph::RangeGraph() = default;
 RangeGraph::~RangeGraph() = default;
 RangeGraph::RangeGraph(RangeGraph&&) noexcept = default;
@@ -85,16 +97,21 @@ std::optional<Eigen::Matrix3d> RangeGraph::poseCovariance(int pose) {
   return Eigen::Matrix3d(c);
 }
 
-std::vector<Eigen::Matrix3d> RangeGraph::poseCovariances() {
-  std::vector<Eigen::Matrix3d> out(poses_.size(), Eigen::Matrix3d::Zero());
-  if (!problem_) return {};
-  std::vector<double*> blocks;
+std::vector<size_t> RangeGraph::freePoses(std::vector<double*>& blocks) {
   std::vector<size_t> index;
   for (size_t i = 0; i < poses_.size(); ++i)
     if (!problem_->IsParameterBlockConstant(poses_[i].data())) {
       blocks.push_back(poses_[i].data());
       index.push_back(i);
     }
+  return index;
+}
+
+std::vector<Eigen::Matrix3d> RangeGraph::poseCovariances() {
+  std::vector<Eigen::Matrix3d> out(poses_.size(), Eigen::Matrix3d::Zero());
+  if (!problem_) return {};
+  std::vector<double*> blocks;
+  const std::vector<size_t> index = freePoses(blocks);
   const auto marginals = marginalCovariances(*problem_, blocks);
   if (!marginals) return {};
   for (size_t k = 0; k < index.size(); ++k) out[index[k]] = (*marginals)[k];
@@ -239,13 +256,8 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
   ceres::Problem& p = *problem_;
   // The marginal covariances of the free poses and biases (marginals.hpp).
   std::vector<double*> blocks;
-  std::vector<size_t> pose_index;
+  const std::vector<size_t> pose_index = freePoses(blocks);
   int free_bias = 0;
-  for (size_t i = 0; i < poses_.size(); ++i)
-    if (!p.IsParameterBlockConstant(poses_[i].data())) {
-      blocks.push_back(poses_[i].data());
-      pose_index.push_back(i);
-    }
   for (auto& b : biases_)
     if (!p.IsParameterBlockConstant(&b)) {
       blocks.push_back(&b);
@@ -307,15 +319,10 @@ ScaleEvidence RangeGraph::scaleEvidence() const {
   std::vector<double> e(ranges_.size()), d(ranges_.size());
   for (size_t i = 0; i < ranges_.size(); ++i) e[i] = rangeResidual(ranges_[i], nullptr, &d[i]);
   // The robust centre and spread of all residuals, to leave out the NLOS ones.
-  std::vector<double> sorted = e;
-  auto median = [](std::vector<double>& v) {
-    const auto m = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), m, v.end());
-    return *m;
-  };
-  const double centre = median(sorted);
-  for (auto& x : sorted) x = std::abs(x - centre);
-  const double spread = std::max(1.4826 * median(sorted), 1e-6);
+  const double centre = medianOf(e);
+  std::vector<double> deviation(e.size());
+  for (size_t i = 0; i < e.size(); ++i) deviation[i] = std::abs(e[i] - centre);
+  const double spread = std::max(1.4826 * medianOf(std::move(deviation)), 1e-6);
   auto kept = [&](size_t i) { return std::abs(e[i] - centre) <= 3.0 * spread; };
   // The slope within anchors: each anchor's residuals and distances are centred on their own
   // means, so that a bias (per anchor, or on every anchor alike) adds nothing to it.
@@ -329,12 +336,12 @@ ScaleEvidence RangeGraph::scaleEvidence() const {
         const auto a = static_cast<size_t>(ranges_[i].anchor);
         n[a] += 1, sd[a] += d[i], se[a] += e[i];
       }
-    double sdd = 0, sde = 0, count = 0;
+    double sdd = 0, sde = 0, see = 0, count = 0;
     for (size_t i = begin; i < end; ++i)
       if (kept(i)) {
         const auto a = static_cast<size_t>(ranges_[i].anchor);
         const double dd = d[i] - sd[a] / n[a], de = e[i] - se[a] / n[a];
-        sdd += dd * dd, sde += dd * de, count += 1;
+        sdd += dd * dd, sde += dd * de, see += de * de, count += 1;
       }
     if (count < 3 || !(sdd > 0)) continue;
     const double slope = sde / sdd;
@@ -347,13 +354,7 @@ ScaleEvidence RangeGraph::scaleEvidence() const {
       }
     double groups = 0;
     for (double k : n) groups += k > 0;
-    double sww = 0;
-    for (size_t i = begin; i < end; ++i)
-      if (kept(i)) {
-        const auto a = static_cast<size_t>(ranges_[i].anchor);
-        sww += (e[i] - se[a] / n[a]) * (e[i] - se[a] / n[a]);
-      }
-    out.explained[h] = sww > 0 ? slope * slope * sdd / sww : 0.0;
+    out.explained[h] = see > 0 ? slope * slope * sdd / see : 0.0;
     out.slope[h] = slope;
     out.slope_std[h] = std::sqrt(ss / std::max(1.0, count - groups - 1) / sdd);
     out.ranges[h] = static_cast<long>(count);
@@ -368,14 +369,6 @@ std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
     raw[static_cast<size_t>(r.anchor)].push_back(e + biases_[static_cast<size_t>(r.anchor)]);
     centred[static_cast<size_t>(r.anchor)].push_back(e);
   }
-  auto median = [](std::vector<double>::const_iterator begin,
-                   std::vector<double>::const_iterator end) {
-    if (begin == end) return 0.0;
-    std::vector<double> v(begin, end);
-    const auto m = static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), v.begin() + m, v.end());
-    return v[static_cast<size_t>(m)];
-  };
   std::vector<AnchorResiduals> out;
   for (size_t i = 0; i < anchors_.size(); ++i) {
     AnchorResiduals a;
@@ -383,12 +376,12 @@ std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
     a.ranges = static_cast<long>(raw[i].size());
     a.bias = biases_[i];
     const auto half = raw[i].begin() + static_cast<std::ptrdiff_t>(raw[i].size() / 2);
-    a.median = median(raw[i].begin(), raw[i].end());
-    a.median_first_half = median(raw[i].begin(), half);
-    a.median_second_half = median(half, raw[i].end());
-    const double m = median(centred[i].begin(), centred[i].end());
+    a.median = medianOf(raw[i]);
+    a.median_first_half = medianOf({raw[i].begin(), half});
+    a.median_second_half = medianOf({half, raw[i].end()});
+    const double m = medianOf(centred[i]);
     for (auto& e : centred[i]) e = std::abs(e - m);
-    a.robust_sigma = 1.4826 * median(centred[i].begin(), centred[i].end());
+    a.robust_sigma = 1.4826 * medianOf(std::move(centred[i]));
     out.push_back(a);
   }
   return out;

@@ -16,6 +16,10 @@
 
 namespace uwbloc::loc {
 
+namespace graph {
+struct ScaleEvidence;  // graph/range_graph.hpp
+}
+
 /// Per-anchor range bias: never, always, or (auto) when the data shows one.
 enum class BiasMode { kOff, kOn, kAuto };
 constexpr std::array<EnumName<BiasMode>, 3> enumNames(BiasMode) {
@@ -40,21 +44,15 @@ inline bool biasStandsOut(double median_first_half, double median_second_half,
 /// on the MRPT demo the slope is 0.5 % and explains 6 %; on Plaza2 it is 5.4 % and explains
 /// 60 %), and the two halves agree within 3 standard errors of their difference (a slope that
 /// changes along the run is not a fixed scale).
-template <class Evidence>
-bool scaleStandsOut(const Evidence& e) {
-  if (e.ranges[0] < 20 || !(std::abs(e.slope[0]) > 3.0 * e.slope_std[0])) return false;
-  if (!(e.explained[0] >= 0.25)) return false;
-  return std::abs(e.slope[1] - e.slope[2]) < 3.0 * std::hypot(e.slope_std[1], e.slope_std[2]);
-}
+bool scaleStandsOut(const graph::ScaleEvidence& e);
 
 /// A range model per anchor: the bias to subtract and the std. Until learnt (or when fixed),
 /// every anchor has no bias and the method's own std.
 class RangeNoiseModel {
  public:
   explicit RangeNoiseModel(double sigma) : sigma_(sigma) {}
-  /// Takes a learnt model: `noise` per anchor (bias, applied only when `use_bias`) and the
-  /// std (none: keep the method's own).
-  /// std (none: keep the method's own), and the range scale (none: no scale).
+  /// Takes a learnt model: `noise` per anchor (bias, applied only when `use_bias`), the std
+  /// (none: keep the method's own) and the range scale (none: no scale).
   void learn(const std::map<int, NoiseEstimate>& noise, bool use_bias, std::optional<double> sigma,
              std::optional<double> scale = std::nullopt);
   double bias(int anchor) const {

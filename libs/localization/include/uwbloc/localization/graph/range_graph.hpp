@@ -176,6 +176,8 @@ class RangeGraph {
   /// z - (1 + scale) distance(pose, anchor) - bias of one range edge, and its gradient in the
   /// pose; `distance` receives the distance.
   double rangeResidual(const Range& r, Eigen::Vector3d* gradient, double* distance = nullptr) const;
+  /// Appends the free (not held) poses' parameter blocks to `blocks`; returns their indices.
+  std::vector<size_t> freePoses(std::vector<double*>& blocks);
   /// The robust loss's weight rho'(s^2) at a whitened residual s.
   double lossWeight(double whitened) const;
   /// E[w z^2] / E[w] under a standard normal: the robust weights' shrinkage of a variance.
