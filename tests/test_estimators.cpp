@@ -60,6 +60,7 @@ const std::map<std::string, double> kRoomBound = {{"uwb-ls", 0.70},
                                                   {"pf-ibas-stratified", 0.04},
                                                   {"uwb-pf", 0.15},
                                                   {"graph-uwb-odom", 0.23},
+                                                  {"graph-uwb", 0.26},
                                                   {"pf-ibas+graph", 0.045},
                                                   {"uwb-multitag", 0.33}};
 
@@ -313,7 +314,7 @@ TEST(Registry, ListsEveryMethodWithDefaults) {
   }
   const auto* ekf = reg.find("uwb-ekf");
   bool has_q = false;
-  for (const auto& p : ekf->defaults) has_q |= p.key == "q" && p.value == "0.1";
+  for (const auto& p : ekf->defaults) has_q |= p.key == "q" && p.value == "auto";
   EXPECT_TRUE(has_q);
 }
 

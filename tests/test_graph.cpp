@@ -128,6 +128,16 @@ TEST(GraphCosts, JacobiansMatchNumeric) {
   s0[0] = 0.05;
   range->Evaluate(ps, &r, nullptr);
   EXPECT_NEAR(r, -0.42, 1e-12);
+  // Constant velocity through three poses 0.2 s and 0.3 s apart: velocities (1, 0) then
+  // (0.6/0.3, 0.3/0.3) = (2, 1); change (1, 1) over sqrt(q (0.2 + 0.3) / 2) = 0.5 at q = 1.
+  std::unique_ptr<ceres::CostFunction> cv(ConstantVelocityCost::Create(0.2, 0.3, 1.0));
+  double ca[3] = {0, 0, 0.4}, cb[3] = {0.2, 0, -2.0}, cc[3] = {0.8, 0.3, 3.1}, rc[2];
+  const double* pc[3] = {ca, cb, cc};
+  cv->Evaluate(pc, rc, nullptr);
+  EXPECT_NEAR(rc[0], 2.0, 1e-12);
+  EXPECT_NEAR(rc[1], 2.0, 1e-12);
+  std::vector<const ceres::Manifold*> m5{&pose_manifold, &pose_manifold, &pose_manifold};
+  checkGradients(cv.get(), {pose, pose2, ca}, &m5, "constant velocity");
 }
 
 TEST(GraphCosts, RelativePoseWithAFullInformationMatrix) {
@@ -235,6 +245,64 @@ TEST(RangeSlam, SelectedInversionGivesCeresMarginals) {
 // anchor, which also lengthens every range, is no scale. (Where the robot keeps about the same
 // distance to each anchor, as on Synthetic's loop, a scale is a bias per anchor, and the biases
 // take it.)
+// The ranges alone (motion=cv): a tag under white acceleration of known q, ranged one anchor at
+// a time, each range its own vertex. The two variance components, started far off (sigma 1 m,
+// q 20), settle: the range std within 10 % of the truth, the path within it. q does not: it
+// settles 2.6 times above the path's own (an open defect of its redundancy, printed here).
+TEST(RangeSlam, ConstantVelocityGraphLearnsRangeNoiseAndMotionQ) {
+  const std::vector<uwb::Anchor> anchors{
+      {1, {0, 0, 1.0}}, {2, {40, 0, 1.0}}, {3, {40, 30, 1.0}}, {4, {0, 30, 1.0}}};
+  const double q = 0.2, sigma = 0.3, dt = 0.25;
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0, 1);
+  std::vector<Eigen::Vector2d> truth{{20, 15}};
+  Eigen::Vector2d v(0.5, 0.2);
+  for (int k = 1; k < 800; ++k) {
+    truth.push_back(truth.back() + v * dt);
+    v += std::sqrt(q * dt) * Eigen::Vector2d(g(rng), g(rng));
+    v -= 0.02 * (truth.back() - Eigen::Vector2d(20, 15)) * dt;  // stays in the field
+  }
+  // The q the path itself shows (the pull to the field's centre adds to the noise's).
+  double change_sq = 0;
+  for (size_t k = 2; k < truth.size(); ++k)
+    change_sq += ((truth[k] - 2.0 * truth[k - 1] + truth[k - 2]) / dt).squaredNorm() / dt;
+  const double q_path = change_sq / (2.0 * static_cast<double>(truth.size() - 2));
+  RangeGraph gr;
+  gr.setAnchors(anchors);
+  for (size_t k = 0; k < truth.size(); ++k) {
+    const Eigen::Vector2d start = truth[k] + Eigen::Vector2d(g(rng), g(rng));
+    const int p = gr.addPose(Eigen::Vector3d(start.x(), start.y(), 0.0));
+    gr.addPosePrior(p, Eigen::Vector3d(start.x(), start.y(), 0.0), {1e4, 1e4, 1.0});
+    if (k >= 2) gr.addConstantVelocity(p - 2, p - 1, p, dt, dt);
+    const auto& a = anchors[k % anchors.size()];
+    const double d = (Eigen::Vector3d(truth[k].x(), truth[k].y(), 0.0) - a.position).norm();
+    gr.addRange(p, a.id, d + sigma * g(rng), Eigen::Vector3d::Zero());
+  }
+  RangeGraphParams params;
+  params.loss = RobustLoss::kNone;
+  params.range_sigma = 1.0;
+  params.accel_psd = 20.0;
+  for (int round = 0; round < 30; ++round) {
+    gr.build(params);
+    ASSERT_TRUE(gr.solve().usable);
+    const auto vc = gr.estimateVarianceComponents();
+    ASSERT_TRUE(vc.range_sigma && vc.accel_psd);
+    params.range_sigma = *vc.range_sigma;
+    params.accel_psd = *vc.accel_psd;
+  }
+  double se = 0;
+  for (size_t k = 0; k < truth.size(); ++k) se += (gr.pose(k).head<2>() - truth[k]).squaredNorm();
+  std::printf(
+      "[ GRAPH    ] ranges alone: sigma %.3f m (true %.2f), q %.3f (the path's %.3f), rmse %.3f "
+      "m\n",
+      params.range_sigma, sigma, params.accel_psd, q_path, std::sqrt(se / truth.size()));
+  EXPECT_NEAR(params.range_sigma, sigma, 0.1 * sigma);
+  EXPECT_LT(std::sqrt(se / truth.size()), sigma);
+  // Not asserted: q settles at 0.69 against the path's 0.27 (2.6 times high; see
+  // RangeGraph::estimateVarianceComponents).
+  EXPECT_GT(params.accel_psd, 0.0);
+}
+
 TEST(RangeSlam, ARangeScaleStandsOutAndIsFound) {
   const std::vector<uwb::Anchor> anchors{
       {1, {0, 0, 1.0}}, {2, {60, 0, 1.0}}, {3, {60, 40, 1.0}}, {4, {0, 40, 1.0}}};

@@ -134,13 +134,14 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
     e["resets"] = m.resets;
     e["events"] = nlohmann::json::object();
     for (const auto& [name, count] : m.events) e["events"][name] = count;
-    if (!m.estimated_noise.empty() || m.estimated_range_sigma) {
+    if (!m.estimated_noise.empty() || m.estimated_range_sigma || m.estimated_accel_psd) {
       e["estimated_noise"] = nlohmann::json::object();
       for (const auto& [anchor, n] : m.estimated_noise)
         e["estimated_noise"][std::to_string(anchor)] = {
             {"bias", number(n.bias)}, {"sigma", number(n.sigma)}, {"ranges", n.ranges}};
       if (m.estimated_range_sigma) e["estimated_range_sigma"] = number(*m.estimated_range_sigma);
       if (m.estimated_range_scale) e["estimated_range_scale"] = number(*m.estimated_range_scale);
+      if (m.estimated_accel_psd) e["estimated_accel_psd"] = number(*m.estimated_accel_psd);
     }
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
@@ -305,6 +306,10 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
                     num(m, "estimated_range_scale"),
                     100.0 * std::abs(num(m, "estimated_range_scale")),
                     num(m, "estimated_range_scale") >= 0 ? "long" : "short");
+      out << buf;
+    }
+    if (m.contains("estimated_accel_psd")) {
+      std::snprintf(buf, sizeof buf, " motion q %.3g m^2/s^3;", num(m, "estimated_accel_psd"));
       out << buf;
     }
     for (const auto& [anchor, n] : byAnchor(m["estimated_noise"])) {

@@ -25,4 +25,38 @@ void RangeNoiseModel::report(EstimatorStatistics& stats) const {
   if (learnt_scale_) stats.estimated_range_scale = learnt_scale_;
 }
 
+std::optional<PoseEstimate> LearningStart::process(const Event& event, const Learnt& learnt,
+                                                   const Step& step) {
+  if (learner_) {
+    const double t = eventTime(event);
+    if (!t0_) t0_ = t;
+    kept_.push_back(event);
+    learner_->process(event);
+    if (t - *t0_ >= span_) end(learnt, step);
+  } else if (auto out = step(event)) {
+    pending_.push_back(*out);
+  }
+  if (pending_.empty()) return std::nullopt;
+  PoseEstimate out = pending_.front();
+  pending_.pop_front();
+  return out;
+}
+
+std::vector<PoseEstimate> LearningStart::finish(const Learnt& learnt, const Step& step) {
+  if (learner_) end(learnt, step);
+  std::vector<PoseEstimate> out(pending_.begin(), pending_.end());
+  pending_.clear();
+  return out;
+}
+
+void LearningStart::end(const Learnt& learnt, const Step& step) {
+  learner_->finishAll();
+  learnt(learner_->statistics());
+  learner_.reset();
+  for (const auto& e : kept_)
+    if (auto out = step(e)) pending_.push_back(*out);
+  kept_.clear();
+  kept_.shrink_to_fit();
+}
+
 }  // namespace uwbloc::loc

@@ -130,6 +130,12 @@ Registry makeBuiltin() {
       "anchor self-calibration)",
       {"odometry", "ranges"}));
   r.add(withDefault(makeMethod<GraphSmoother, GraphSmootherParams>(
+                        "graph-uwb",
+                        "UWB only: batch smoothing of the ranges over a Ceres graph with a "
+                        "constant-velocity prior (range std, q, scale and biases learnt)",
+                        {"ranges"}),
+                    "motion", "cv"));
+  r.add(withDefault(makeMethod<GraphSmoother, GraphSmootherParams>(
                         "pf-ibas+graph",
                         "The PF-IBAS paper's full method: PF-IBAS online, then its estimates "
                         "smoothed over a Ceres graph with the ranges and the odometry (front-end "

@@ -5,6 +5,7 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <cmath>
 
 namespace uwbloc::loc::graph {
 
@@ -89,6 +90,29 @@ struct RelativePoseCost {
   }
   const Eigen::Vector3d delta_;             ///< measured increment in a's frame
   const Eigen::Matrix3d sqrt_information_;  ///< upper-triangular L, L^T L = information
+};
+
+/// Constant velocity through three consecutive poses a, b, c (time steps dt1 = t_b - t_a,
+/// dt2 = t_c - t_b) under white acceleration of spectral density q: the change of the mean
+/// velocity, (c - b) / dt2 - (b - a) / dt1, is about N(0, q (dt1 + dt2) / 2) per axis (the
+/// integral of the acceleration over the half steps around b). Positions only: the headings do
+/// not enter. Parameters: a[3], b[3], c[3].
+struct ConstantVelocityCost {
+  ConstantVelocityCost(double dt1, double dt2, double accel_psd)
+      : inv_dt1_(1.0 / dt1), inv_dt2_(1.0 / dt2),
+        inv_sigma_(1.0 / std::sqrt(accel_psd * 0.5 * (dt1 + dt2))) {}
+  template <typename T>
+  bool operator()(const T* a, const T* b, const T* c, T* residual) const {
+    for (int i = 0; i < 2; ++i)
+      residual[i] = ((c[i] - b[i]) * inv_dt2_ - (b[i] - a[i]) * inv_dt1_) * inv_sigma_;
+    return true;
+  }
+  static ceres::CostFunction* Create(double dt1, double dt2, double accel_psd) {
+    return new ceres::AutoDiffCostFunction<ConstantVelocityCost, 2, 3, 3, 3>(
+        new ConstantVelocityCost(dt1, dt2, accel_psd));
+  }
+  const double inv_dt1_, inv_dt2_;  ///< [1/s]
+  const double inv_sigma_;          ///< whitening: 1 / std of the velocity change [s/m]
 };
 
 /// A prior on a parameter block: (x - x0) / sigma per component (anchor self-calibration,

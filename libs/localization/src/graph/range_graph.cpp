@@ -70,6 +70,12 @@ void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Ve
   throw std::invalid_argument("RangeGraph: unknown anchor " + std::to_string(anchor_id));
 }
 
+void RangeGraph::addConstantVelocity(int a, int b, int c, double dt1, double dt2) {
+  if (!(dt1 > 0.0) || !(dt2 > 0.0))
+    throw std::invalid_argument("RangeGraph: a constant-velocity edge needs positive time steps");
+  constant_velocity_.push_back({a, b, c, dt1, dt2});
+}
+
 void RangeGraph::addPosePrior(int pose, const Eigen::Vector3d& mean, const Eigen::Vector3d& sigma) {
   priors_.push_back({pose, mean, sigma});
 }
@@ -158,6 +164,11 @@ void RangeGraph::build(const RangeGraphParams& params) {
         RelativePoseCost::Create(o.delta, o.sqrt_information.value_or(default_sqrt_information)),
         nullptr, poses_[static_cast<size_t>(o.from)].data(),
         poses_[static_cast<size_t>(o.to)].data());
+  for (const auto& e : constant_velocity_)
+    p.AddResidualBlock(ConstantVelocityCost::Create(e.dt1, e.dt2, params_.accel_psd), nullptr,
+                       poses_[static_cast<size_t>(e.a)].data(),
+                       poses_[static_cast<size_t>(e.b)].data(),
+                       poses_[static_cast<size_t>(e.c)].data());
   for (auto& l : landmarks_) p.AddParameterBlock(l.data(), 2);
   for (const auto& o : landmark_obs_)
     p.AddResidualBlock(LandmarkCost::Create(o.z, o.sigma), nullptr,
@@ -252,7 +263,12 @@ double RangeGraph::lossConsistency() const {
 }
 
 std::optional<double> RangeGraph::estimateRangeSigma() {
-  if (!problem_ || ranges_.empty()) return std::nullopt;
+  return estimateVarianceComponents().range_sigma;
+}
+
+RangeGraph::VarianceComponents RangeGraph::estimateVarianceComponents() {
+  VarianceComponents out;
+  if (!problem_ || ranges_.empty()) return out;
   ceres::Problem& p = *problem_;
   // The marginal covariances of the free poses and biases (marginals.hpp).
   std::vector<double*> blocks;
@@ -266,7 +282,7 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
   const bool free_scale = !p.IsParameterBlockConstant(&scale_);
   if (free_scale) blocks.push_back(&scale_);
   const auto marginals = marginalCovariances(p, blocks);
-  if (!marginals) return std::nullopt;
+  if (!marginals) return out;
   std::vector<Eigen::Matrix3d> pose_cov(poses_.size(), Eigen::Matrix3d::Zero());
   for (size_t k = 0; k < pose_index.size(); ++k) pose_cov[pose_index[k]] = (*marginals)[k];
   // A free bias or scale takes about one leverage from the range edges, less its prior's share.
@@ -282,7 +298,7 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
   // The range group. Leverage of one edge: w J Sigma J^T / sigma^2 (pose part); a free bias adds
   // about one leverage to its anchor's edges (less its prior's share).
   const double sigma = params_.range_sigma;
-  double weighted_sq = 0.0, redundancy = 0.0;
+  double weighted_sq = 0.0, redundancy = 0.0, pose_leverage = 0.0;
   for (const auto& r : ranges_) {
     Eigen::Vector3d g;
     // Normalised by the range's own variance scale (1 unless an NLOS model doubted it).
@@ -293,12 +309,37 @@ std::optional<double> RangeGraph::estimateRangeSigma() {
     const double h = w * g.dot(pose_cov[static_cast<size_t>(r.pose)] * g) / (sigma * sigma);
     weighted_sq += w * e * e;
     redundancy += w - h;
+    pose_leverage += h;
   }
   redundancy -= free_bias - bias_prior_leverage;
-  if (redundancy <= 1.0) return std::nullopt;
-  const double sigma_new = std::sqrt(weighted_sq / (redundancy * lossConsistency()));
-  if (!std::isfinite(sigma_new)) return std::nullopt;
-  return sigma_new;
+  if (redundancy > 1.0) {
+    const double sigma_new = std::sqrt(weighted_sq / (redundancy * lossConsistency()));
+    if (std::isfinite(sigma_new)) out.range_sigma = sigma_new;
+  }
+  // The constant-velocity group: the free poses' parameters less the leverage the ranges and
+  // the pose priors take of them (a bias's or the scale's parameter goes to its ranges and its
+  // prior) is theirs.
+  if (constant_velocity_.empty() || !odometry_.empty() || !landmark_obs_.empty() ||
+      params_.estimate_anchors)
+    return out;
+  for (const auto& pr : priors_)
+    for (int i = 0; i < 3; ++i)
+      pose_leverage += pose_cov[static_cast<size_t>(pr.pose)](i, i) / (pr.sigma(i) * pr.sigma(i));
+  double cv_sq = 0.0;
+  for (const auto& e : constant_velocity_) {
+    const Eigen::Vector2d change = (poses_[static_cast<size_t>(e.c)].head<2>() -
+                                    poses_[static_cast<size_t>(e.b)].head<2>()) /
+                                       e.dt2 -
+                                   (poses_[static_cast<size_t>(e.b)].head<2>() -
+                                    poses_[static_cast<size_t>(e.a)].head<2>()) /
+                                       e.dt1;
+    cv_sq += change.squaredNorm() / (0.5 * (e.dt1 + e.dt2));  // whitened at q = 1
+  }
+  const double cv_redundancy =
+      2.0 * static_cast<double>(constant_velocity_.size()) -
+      (3.0 * static_cast<double>(pose_index.size()) - pose_leverage);
+  if (cv_redundancy > 1.0 && std::isfinite(cv_sq)) out.accel_psd = cv_sq / cv_redundancy;
+  return out;
 }
 
 void RangeGraph::restore(const Values& v) {

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/lidar/landmarks.hpp"
+#include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/localization/registry.hpp"
 
 namespace uwbloc::loc {
@@ -18,6 +20,11 @@ constexpr double kSettled = 0.05;
 /// with the square of their number (CARMEN intel with simulated UWB, 9 721 poses: about 2 min);
 /// larger graphs keep the starting std and say so (event noise_estimate_skipped_large_graph).
 constexpr size_t kMaxPosesForNoiseEstimate = 20000;
+/// motion=cv with q=auto: the white-acceleration spectral density the estimate starts from
+/// [m^2/s^3] (a walking pace's turns; the variance components move it to the data's).
+constexpr double kStartAccelPsd = 1.0;
+/// motion=cv: ranges closer in time than this share a vertex [s].
+constexpr double kSameVertex = 1e-3;
 
 // The graph's anchors are vertices (fixed, or calibrated within the run): a mobile node, whose
 // position moves, is not one of them; ranges to it count as unknown_anchor.
@@ -29,10 +36,14 @@ RangeFrontEndParams fixedAnchorsOnly(RangeFrontEndParams p) {
 }  // namespace
 
 GraphSmoother::GraphSmoother(const GraphSmootherParams& params, const EstimatorContext& context)
-    : UwbEstimator(fixedAnchorsOnly(params.front), context, TagUse::kAll),
+    : UwbEstimator(fixedAnchorsOnly(params.front), context,
+                   params.motion == GraphMotion::kConstantVelocity ? TagUse::kPrimary
+                                                                  : TagUse::kAll),
       params_(params),
       context_(context) {
-  if (!context.initial_pose)
+  if (constantVelocity() && !params_.front_end.empty())
+    throw ParamError("motion=cv smooths the ranges alone: it takes no front end");
+  if (!context.initial_pose && !constantVelocity())
     throw ParamError("graph smoothing needs a start pose (the dataset's ground truth)");
   if (!params_.front_end.empty()) {
     // The spec's own ',' separates graph parameters, so front-end parameters use ';'.
@@ -53,6 +64,7 @@ graph::RangeGraphParams GraphSmoother::graphParams() const {
   p.estimate_anchors = params_.estimate_anchors;
   p.anchor_prior_sigma = params_.anchor_prior;
   p.max_iterations = params_.iterations;
+  p.accel_psd = params_.accel_psd.value.value_or(kStartAccelPsd);
   return p;
 }
 
@@ -125,6 +137,7 @@ std::optional<PoseEstimate> GraphSmoother::doProcess(const Event& event) {
     return out;
   }
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
+    if (constantVelocity()) return out;  // the ranges alone
     if (!odo->delta.allFinite()) {
       countRejection("non_finite_odometry");
       return out;
@@ -203,6 +216,7 @@ Eigen::Vector3d GraphSmoother::odometrySigma(const Eigen::Vector3d& d) const {
 // Vertices: the front end's estimates (with their priors and the odometry between them), or one
 // per odometry increment (dead reckoning from the start pose). Returns each vertex's time.
 std::vector<double> GraphSmoother::addPoseVertices(graph::RangeGraph& g) const {
+  if (constantVelocity()) return addRangeVertices(g);
   std::vector<double> times;
   if (front_) {
     size_t k = 0;
@@ -239,6 +253,82 @@ std::vector<double> GraphSmoother::addPoseVertices(graph::RangeGraph& g) const {
     }
   }
   return times;
+}
+
+std::vector<double> GraphSmoother::addRangeVertices(graph::RangeGraph& g) const {
+  std::vector<double> times;
+  for (const auto& r : ranges_)
+    if (times.empty() || r.measurement.t - times.back() > kSameVertex)
+      times.push_back(r.measurement.t);
+  if (times.empty()) return times;
+  // Where the vertices start: the per-epoch Gauss-Newton fixes, each replaced by the median of
+  // it and its four neighbours per axis (a mirror fix among three anchors is an outlier),
+  // interpolated in time; before the first and after the last, the nearest.
+  std::vector<double> fix_t;
+  std::vector<Eigen::Vector2d> fix_xy;
+  EpochBuffer epochs(AutoDouble{});
+  auto addFix = [&](const std::optional<std::vector<AcceptedRange>>& epoch) {
+    if (!epoch) return;
+    const uwb::Fix f = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
+    if (f.ok() && f.position.allFinite()) {
+      fix_t.push_back(epochTime(*epoch));
+      fix_xy.push_back(f.position);
+    }
+  };
+  for (const auto& r : ranges_) addFix(epochs.add(r));
+  addFix(epochs.flush());
+  if (fix_xy.empty()) {
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (const auto& a : context_.anchors) centre += a.position.head<2>();
+    fix_t.push_back(times.front());
+    fix_xy.push_back(context_.initial_pose ? Eigen::Vector2d(context_.initial_pose->head<2>())
+                                           : Eigen::Vector2d(centre / std::max<size_t>(
+                                                                          context_.anchors.size(),
+                                                                          1)));
+  }
+  std::vector<Eigen::Vector2d> smooth(fix_xy.size());
+  for (size_t i = 0; i < fix_xy.size(); ++i) {
+    const size_t lo = i >= 2 ? i - 2 : 0, hi = std::min(fix_xy.size(), i + 3);
+    for (int axis = 0; axis < 2; ++axis) {
+      std::vector<double> v;
+      for (size_t k = lo; k < hi; ++k) v.push_back(fix_xy[k](axis));
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2),
+                       v.end());
+      smooth[i](axis) = v[v.size() / 2];
+    }
+  }
+  size_t k = 0;
+  for (size_t i = 0; i < times.size(); ++i) {
+    const double t = times[i];
+    while (k + 1 < fix_t.size() && fix_t[k + 1] <= t) ++k;
+    Eigen::Vector2d xy = smooth[k];
+    if (k + 1 < fix_t.size() && t > fix_t[k]) {
+      const double f = (t - fix_t[k]) / (fix_t[k + 1] - fix_t[k]);
+      xy = (1.0 - f) * smooth[k] + f * smooth[k + 1];
+    }
+    // The vertex is the tag's position (ranges are added without the lever arm); its heading
+    // enters no edge, so a prior holds it.
+    const int v = g.addPose(Eigen::Vector3d(xy.x(), xy.y(), 0.0));
+    g.addPosePrior(v, Eigen::Vector3d(xy.x(), xy.y(), 0.0), Eigen::Vector3d(1e4, 1e4, 1.0));
+    if (i >= 2) g.addConstantVelocity(v - 2, v - 1, v, times[i - 1] - times[i - 2], t - times[i - 1]);
+  }
+  return times;
+}
+
+std::vector<PoseEstimate> GraphSmoother::trackPoses(const graph::RangeGraph& g,
+                                                    const std::vector<double>& times) const {
+  const Eigen::Vector3d tag =
+      ranges_.empty() ? Eigen::Vector3d::Zero() : ranges_.front().measurement.tag_on_robot;
+  HeadingFromMotion heading;
+  if (context_.initial_pose) heading.setHeading(context_.initial_pose->z());
+  std::vector<PoseEstimate> out;
+  for (size_t i = 0; i < g.poses(); ++i) {
+    const size_t a = i > 0 ? i - 1 : i, b = std::min(i + 1, g.poses() - 1);
+    if (b > a) heading.update((g.pose(b) - g.pose(a)).head<2>() / (times[b] - times[a]));
+    out.push_back(kalman::tagTrackPose(times[i], g.pose(i).head<2>(), Eigen::Matrix2d::Zero(),
+                                       tag, heading.heading()));
+  }
+  return out;
 }
 
 // Scan matching between consecutive vertices (where both have an ICP pose at their time).
@@ -298,8 +388,12 @@ void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& t
       countRejection("range_far_from_any_pose", r.measurement.anchor_id);
       continue;
     }
-    g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range,
-               r.measurement.tag_on_robot, r.variance_scale);
+    // motion=cv: the vertex is the tag itself.
+    const Eigen::Vector3d tag =
+        constantVelocity() ? Eigen::Vector3d(0.0, 0.0, r.measurement.tag_on_robot.z())
+                           : r.measurement.tag_on_robot;
+    g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range, tag,
+               r.variance_scale);
   }
 }
 
@@ -327,37 +421,73 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
     p.range_sigma = *front_->statistics().estimated_range_sigma;
     stats_.estimated_range_sigma = p.range_sigma;
     auto_sigma = false;
-  } else if (auto_sigma && g.poses() > kMaxPosesForNoiseEstimate) {
+  }
+  bool auto_q = constantVelocity() && params_.accel_psd.isAuto();
+  if ((auto_sigma || auto_q) && g.poses() > kMaxPosesForNoiseEstimate) {
     ++stats_.events["noise_estimate_skipped_large_graph"];
-    auto_sigma = false;
+    auto_sigma = auto_q = false;
   }
   if (auto_sigma || params_.bias == BiasMode::kAuto) p.estimate_bias = false;
   if (auto_sigma || params_.scale == BiasMode::kAuto) p.estimate_scale = false;
+  const auto start_values = g.values();
   if (!solveOnce(g, p)) return;
-  // Variance-component rounds, each followed by a re-solve; false when a solve failed.
+  // Variance-component rounds (the range std, and motion=cv's q), each followed by a re-solve;
+  // false when a solve failed.
   auto estimateSigma = [&]() {
     for (int round = 0; round < params_.noise_rounds; ++round) {
-      const auto estimate = g.estimateRangeSigma();
+      const auto estimate = g.estimateVarianceComponents();
       ++stats_.events["noise_rounds"];
-      if (!estimate) {
+      if ((auto_sigma && !estimate.range_sigma) || (auto_q && !estimate.accel_psd)) {
         ++stats_.events["noise_estimate_failed"];
         break;
       }
-      const double sigma = std::clamp(*estimate, 1e-3, 1e3);
-      const bool settled = std::abs(sigma / p.range_sigma - 1.0) < kSettled;
-      p.range_sigma = sigma;
+      bool settled = true;
+      if (auto_sigma) {
+        const double sigma = std::clamp(*estimate.range_sigma, 1e-3, 1e3);
+        settled = std::abs(sigma / p.range_sigma - 1.0) < kSettled;
+        p.range_sigma = sigma;
+      }
+      if (auto_q) {
+        const double q = std::clamp(*estimate.accel_psd, 1e-4, 1e4);
+        settled = settled && std::abs(q / p.accel_psd - 1.0) < kSettled;
+        p.accel_psd = q;
+      }
       if (settled) break;
       if (!solveOnce(g, p)) return false;
     }
-    stats_.estimated_range_sigma = p.range_sigma;
+    if (auto_sigma) stats_.estimated_range_sigma = p.range_sigma;
+    if (auto_q) stats_.estimated_accel_psd = p.accel_psd;
     return true;
   };
-  if (auto_sigma && !estimateSigma()) return;
+  if ((auto_sigma || auto_q) && !estimateSigma()) return;
   // A scale, unlike a bias, is a deterministic error of the whole model: once it is solved, the
   // std is estimated again without it (on Plaza2 the ranges read 6.9 % long; the std falls from
   // 3.2 m, which counted that error, to about 0.6 m).
   const bool scale_was_on = p.estimate_scale;
-  if (params_.scale == BiasMode::kAuto) {
+  if (constantVelocity() && params_.scale == BiasMode::kAuto) {
+    // Without odometry the path bends to take up most of a scale's slope (Plaza2: 7 % long
+    // ranges leave a slope of 0.3 % once solved without it), and the solve without a scale
+    // ends far from the one with it (Plaza2: range std 2.4 m against 0.58 m). So the noise is
+    // learnt a second time from the start with the scale free, and the scale stays when it
+    // explains a quarter of the residuals' variance (scaleExplains on the two stds).
+    const auto without = g.values();
+    const graph::RangeGraphParams p_without = p;
+    const auto sigma_without = g.estimateVarianceComponents().range_sigma;
+    g.restore(start_values);
+    p.estimate_scale = true;
+    bool stands = solveOnce(g, p) && (!(auto_sigma || auto_q) || estimateSigma());
+    const auto sigma_with = stands ? g.estimateVarianceComponents().range_sigma : std::nullopt;
+    stands = sigma_without && sigma_with && scaleExplains(*sigma_without, *sigma_with);
+    if (stands) {
+      ++stats_.events["range_scale_estimated"];
+    } else {
+      p = p_without;
+      g.restore(without);
+      g.build(p);
+      if (auto_sigma) stats_.estimated_range_sigma = p.range_sigma;
+      if (auto_q) stats_.estimated_accel_psd = p.accel_psd;
+    }
+  } else if (params_.scale == BiasMode::kAuto) {
     // The evidence is read with a bias per anchor free: a bias (on one anchor, or on all alike)
     // must not pass for a scale, and where the robot keeps about the same distance to an anchor
     // a scale is a bias, which the biases then take.
@@ -375,9 +505,9 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   } else {
     p.estimate_scale = params_.scale == BiasMode::kOn;
   }
-  if (p.estimate_scale != scale_was_on) {
+  if (p.estimate_scale != scale_was_on && !constantVelocity()) {
     if (!solveOnce(g, p)) return;
-    if (auto_sigma && p.estimate_scale && !estimateSigma()) return;
+    if ((auto_sigma || auto_q) && p.estimate_scale && !estimateSigma()) return;
   }
   if (params_.bias == BiasMode::kAuto) {
     bool biased = false;
@@ -414,6 +544,7 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   if (front_ && !corners_.empty()) addLandmarks(g, times);
   addRanges(g, times);
   solveBatch(g);
+  if (constantVelocity()) return trackPoses(g, times);
   std::vector<PoseEstimate> out;
   out.reserve(g.poses());
   const auto covariances =

@@ -63,10 +63,8 @@ ParticleLocalizer::ParticleLocalizer(const ParticleCoreParams& core,
     throw ParamError("tracking initialisation needs a start pose (the dataset's ground truth)");
   // The learning method smooths from the start pose; without one the model stays as given.
   for (const auto& m : measurements_)
-    if (const auto c = m->calibration(); c && context.initial_pose) {
-      calibrator_ = Registry::builtin().create(c->first, context);
-      calib_span_ = c->second;
-    }
+    if (const auto c = m->calibration(); c && context.initial_pose)
+      start_ = LearningStart(Registry::builtin().create(c->first, context), c->second);
 }
 
 std::vector<std::pair<std::string, std::string>> ParticleLocalizer::artifacts() const {
@@ -123,21 +121,13 @@ void ParticleLocalizer::relocalise() {
   pf_.initUniform(context_.map->freeCells(), context_.map->resolution());
 }
 
-void ParticleLocalizer::endCalibration() {
-  calibrator_->finishAll();
-  for (auto& m : measurements_) m->calibrate(calibrator_->statistics(), stats_);
+void ParticleLocalizer::learnt(const EstimatorStatistics& learnt) {
+  for (auto& m : measurements_) m->calibrate(learnt, stats_);
   ++stats_.events["range_model_learnt"];
-  calibrator_.reset();
-  for (const auto& e : kept_)
-    if (auto out = step(e)) pending_.push_back(*out);
-  kept_.clear();
-  kept_.shrink_to_fit();
 }
 
 std::vector<PoseEstimate> ParticleLocalizer::doFinishAll() {
-  if (calibrator_) endCalibration();
-  std::vector<PoseEstimate> out(pending_.begin(), pending_.end());
-  pending_.clear();
+  std::vector<PoseEstimate> out = start_.finish(learnt_, step_);
   if (epoch_open_) out.push_back(*finishEpoch());
   return out;
 }
@@ -149,20 +139,7 @@ std::optional<PoseEstimate> ParticleLocalizer::doFinish() {
 }
 
 std::optional<PoseEstimate> ParticleLocalizer::doProcess(const Event& event) {
-  if (calibrator_) {
-    const double t = eventTime(event);
-    if (!calib_t0_) calib_t0_ = t;
-    kept_.push_back(event);
-    calibrator_->process(event);
-    if (t - *calib_t0_ < calib_span_) return std::nullopt;
-    endCalibration();
-  } else if (auto out = step(event)) {
-    pending_.push_back(*out);
-  }
-  if (pending_.empty()) return std::nullopt;
-  PoseEstimate out = pending_.front();
-  pending_.pop_front();
-  return out;
+  return start_.process(event, learnt_, step_);
 }
 
 std::optional<PoseEstimate> ParticleLocalizer::step(const Event& event) {

@@ -1,15 +1,46 @@
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 
 #include <Eigen/Dense>
+#include <sstream>
+
+#include "uwbloc/localization/registry.hpp"
+#include "uwbloc/uwb/range_model.hpp"
 
 namespace uwbloc::loc {
 
 UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
     : UwbEstimator(params.front, context),
       params_(params),
-      init_epochs_(params.epoch_window) {
+      init_epochs_(params.epoch_window),
+      noise_(params.front.sigmaValue()) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
   if (params.start == EkfStart::kStartPose) start_pose_ = context.initial_pose;
+  params_.accel_psd = params.q.value.value_or(params.accel_psd);
+  if (params.calib > 0.0 &&
+      (params.front.sigma.isAuto() || params.q.isAuto() || params.bias != BiasMode::kOff)) {
+    // The ranges alone, as this filter sees them: graph-uwb over the first seconds.
+    std::ostringstream spec;
+    spec << "graph-uwb:sigma=" << params.front.sigma << ",bias=" << enumName(params.bias)
+         << ",q=" << params.q;
+    start_ = LearningStart(Registry::builtin().create(spec.str(), context), params.calib);
+  }
+}
+
+void UwbEkf::learn(const EstimatorStatistics& learnt) {
+  const bool biased =
+      params_.bias == BiasMode::kOn || learnt.events.count("range_bias_estimated") != 0;
+  noise_.learn(learnt.estimated_noise, biased,
+               params_.front.sigma.isAuto() ? learnt.estimated_range_sigma : std::nullopt,
+               learnt.estimated_range_scale);
+  noise_.report(stats_);
+  // The filter's std is then the corrected range's; the ranges are corrected as they come.
+  if (params_.front.sigma.isAuto() && learnt.estimated_range_sigma)
+    params_.front.sigma.value = noise_.sigma();
+  if (params_.q.isAuto() && learnt.estimated_accel_psd) {
+    params_.accel_psd = *learnt.estimated_accel_psd;
+    stats_.estimated_accel_psd = params_.accel_psd;
+  }
+  ++stats_.events["range_model_learnt"];
 }
 
 void UwbEkf::reset() {
@@ -77,8 +108,29 @@ bool UwbEkf::initialise(const AcceptedRange& r) {
 }
 
 std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
-  const auto accepted = acceptRange(event);
+  return start_.process(event, learnt_, step_);
+}
+
+std::vector<PoseEstimate> UwbEkf::doFinishAll() { return start_.finish(learnt_, step_); }
+
+std::optional<PoseEstimate> UwbEkf::doFinish() {
+  auto all = doFinishAll();
+  if (all.empty()) return std::nullopt;
+  return all.back();
+}
+
+std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
+  auto accepted = acceptRange(event);
   if (!accepted) return std::nullopt;
+  if (noise_.scale() != 0.0 || noise_.bias(accepted->measurement.anchor_id) != 0.0) {
+    // The learnt model's correction, before anything reads the range.
+    const double dz = accepted->anchor.z() - accepted->measurement.tag_on_robot.z();
+    accepted->measurement.range =
+        noise_.correct(accepted->measurement.anchor_id, accepted->measurement.range);
+    const auto planar = uwb::projectToPlane(accepted->measurement.range, dz);
+    if (!planar) return std::nullopt;
+    accepted->planar = *planar;
+  }
 
   if (!initialised_) {
     if (!initialise(*accepted)) return std::nullopt;

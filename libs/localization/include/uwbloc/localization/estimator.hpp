@@ -73,6 +73,8 @@ struct EstimatorStatistics {
   std::optional<double> estimated_range_sigma;
   /// The range scale learnt from the data, when one stood out: z = (1 + s) d + bias.
   std::optional<double> estimated_range_scale;
+  /// A learnt white-acceleration spectral density of the tag's motion [m^2/s^3] (q=auto).
+  std::optional<double> estimated_accel_psd;
 };
 
 /// Counts one rejection by reason (and by anchor when anchor_id >= 0).

@@ -20,6 +20,14 @@
 
 namespace uwbloc::loc {
 
+/// What links consecutive pose vertices: the odometry (a vertex per increment), or, for the
+/// ranges alone, a constant-velocity prior (a vertex per range time, white acceleration of
+/// spectral density q).
+enum class GraphMotion { kOdometry, kConstantVelocity };
+constexpr std::array<EnumName<GraphMotion>, 2> enumNames(GraphMotion) {
+  return {{{GraphMotion::kOdometry, "odom"}, {GraphMotion::kConstantVelocity, "cv"}}};
+}
+
 struct GraphSmootherParams {
   RangeFrontEndParams front;  ///< range checks; sigma is the range edges' std
   graph::RobustLoss loss = graph::RobustLoss::kCauchy;  ///< on ranges
@@ -28,6 +36,8 @@ struct GraphSmootherParams {
   double odom_sigma_xy_per_m = 0.05;                    ///< ... plus this per metre moved
   double odom_sigma_theta = 0.005;                      ///< per increment [rad] ...
   double odom_sigma_theta_per_rad = 0.05;               ///< ... plus this per radian turned
+  GraphMotion motion = GraphMotion::kOdometry;          ///< what links the pose vertices
+  AutoDouble accel_psd;  ///< motion=cv: q [m^2/s^3]; auto: estimated with the range std
   BiasMode bias = BiasMode::kAuto;                      ///< a range bias per anchor
   BiasMode scale = BiasMode::kAuto;  ///< a range scale common to the anchors: z = (1 + s) d + b
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
@@ -56,6 +66,12 @@ struct GraphSmootherParams {
     v("odom_xy_per_m", odom_sigma_xy_per_m, "odometry edge std per metre moved");
     v("odom_th", odom_sigma_theta, "odometry edge heading std per increment [rad]");
     v("odom_th_per_rad", odom_sigma_theta_per_rad, "odometry edge heading std per radian turned");
+    v("motion", motion,
+      "what links the pose vertices: odom (a vertex per odometry increment) or cv (ranges "
+      "alone: a vertex per range time, a constant-velocity prior between them)");
+    v("q", accel_psd,
+      "motion=cv: white-acceleration spectral density [m^2/s^3], or auto (estimated from the "
+      "data with the range std)");
     v("bias", bias,
       "a range bias per anchor: 0, 1 or auto (when an anchor's median residual exceeds its "
       "residual spread)");
@@ -138,6 +154,13 @@ class GraphSmoother : public UwbEstimator {
   /// Solves; counts an unusable solution and returns false.
   bool solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   Eigen::Vector3d priorSigma(const PoseEstimate& e) const;
+  /// motion=cv: a vertex per range time (ranges within 1 ms share one), at the per-epoch
+  /// multilateration fixes interpolated in time, linked by constant-velocity edges.
+  std::vector<double> addRangeVertices(graph::RangeGraph& g) const;
+  /// motion=cv: the poses out, at the tag's smoothed track, heading along its motion.
+  std::vector<PoseEstimate> trackPoses(const graph::RangeGraph& g,
+                                       const std::vector<double>& times) const;
+  bool constantVelocity() const { return params_.motion == GraphMotion::kConstantVelocity; }
   double first_t_ = 0.0;
   bool started_ = false;
 };

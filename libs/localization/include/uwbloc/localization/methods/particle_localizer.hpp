@@ -23,6 +23,7 @@
 
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/localization/pf/parts.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 namespace uwbloc::loc {
 
@@ -50,8 +51,8 @@ class ParticleLocalizer : public Estimator {
   void initialise();
   /// One event through the filter.
   std::optional<PoseEstimate> step(const Event& event);
-  /// Ends the calibration: the learnt model to the parts, then the kept events filtered.
-  void endCalibration();
+  /// The calibration's learnt model to the parts.
+  void learnt(const EstimatorStatistics& learnt);
   /// A measurement model judged the filter lost: spread particles over the map again.
   void relocalise();
   std::optional<PoseEstimate> finishEpoch();
@@ -67,12 +68,10 @@ class ParticleLocalizer : public Estimator {
   double epoch_t_ = 0.0;
   bool epoch_open_ = false;
   int relocalise_n_ = 0;  ///< particles for relocalising (the LiDAR part's relocalise_n)
-  // Calibration (see above).
-  std::unique_ptr<Estimator> calibrator_;
-  double calib_span_ = 0.0;
-  std::optional<double> calib_t0_;
-  std::vector<Event> kept_;
-  std::deque<PoseEstimate> pending_;
+  // Calibration (see above), with step() and learnt() bound once.
+  LearningStart start_;
+  LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learnt(s); };
+  LearningStart::Step step_ = [this](const Event& e) { return step(e); };
 };
 
 /// The parameters of a particle-filter method: the filter's own, then one struct per part.

@@ -17,6 +17,7 @@
 #include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 namespace uwbloc::loc {
 
@@ -32,7 +33,13 @@ struct UwbEkfParams {
   EkfStart start = EkfStart::kStartPose;
   double start_sigma = 0.5;    ///< std of the start pose's position [m]
   AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
-  double accel_psd = 0.1;      ///< q, white-acceleration spectral density [m^2/s^3]
+  AutoDouble q;                ///< white-acceleration spectral density [m^2/s^3]; auto: learnt
+  double accel_psd = 0.1;      ///< the q in force: q's value, or the learnt one (not a key)
+  BiasMode bias = BiasMode::kAuto;  ///< a range bias per anchor, learnt at the start
+  /// Seconds of ranges the model is learnt from at the start; 0 (the default): none. Off by
+  /// default: on the MRPT demo (three anchors, one faulty for tens of seconds) the ranges alone
+  /// take that anchor's error for biases, and uwb-ekf goes from 0.163 to 0.711 m.
+  double calib = 0.0;
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 9.0;           ///< chi-square gate on one range innovation (3 sigma, 1 dof)
   int max_gated = 12;          ///< consecutive unused ranges before re-initialising
@@ -46,7 +53,14 @@ struct UwbEkfParams {
     v("start", start, "start at the start pose (start) or at the first multilateration fix (fix)");
     v("start_sigma", start_sigma, "std of the start pose's position [m]");
     v("window", epoch_window, "epoch window of the initial fix [s], or auto");
-    v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
+    v("q", q,
+      "white-acceleration spectral density [m^2/s^3]; auto: learnt at the start when calib > 0, "
+      "else 0.1");
+    v("bias", bias, "a range bias per anchor learnt at the start: 0, 1 or auto");
+    v("calib", calib,
+      "seconds of ranges at the start that the range model (sigma, bias, scale) and q are "
+      "learnt from (graph-uwb over them), before they are filtered; 0: none (the default: "
+      "the ranges alone can take a faulty anchor for a biased one)");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
     v("gate", gate, "chi-square gate on each range innovation (1 dof)");
     v("max_gated", max_gated,
@@ -63,6 +77,8 @@ class UwbEkf : public UwbEstimator {
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
+  std::vector<PoseEstimate> doFinishAll() override;
+  std::optional<PoseEstimate> doFinish() override;
   void reset() override;
   /// Called when the state (re)starts (the adaptive filter restarts its noise statistics).
   virtual void onStart() {}
@@ -104,6 +120,10 @@ class UwbEkf : public UwbEstimator {
  private:
   Eigen::Matrix<double, 1, 4> hj_;  ///< the Jacobian of the last predictRange
   bool initialise(const AcceptedRange& r);
+  /// One event through the filter (after the learning start).
+  std::optional<PoseEstimate> step(const Event& event);
+  /// The learnt range model and q into the filter.
+  void learn(const EstimatorStatistics& learnt);
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
   std::optional<Eigen::Vector3d> start_pose_;  ///< used once, for the first start
@@ -112,6 +132,10 @@ class UwbEkf : public UwbEstimator {
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
   std::map<int, int> quarantine_;  ///< anchor -> in-gate ranges seen since it was gated
+  RangeNoiseModel noise_;          ///< the learnt bias and scale each range is corrected by
+  LearningStart start_;
+  LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learn(s); };
+  LearningStart::Step step_ = [this](const Event& e) { return step(e); };
 };
 
 }  // namespace uwbloc::loc
