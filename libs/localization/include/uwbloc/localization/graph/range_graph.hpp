@@ -126,9 +126,9 @@ class RangeGraph {
   /// parameters (the leverages sum to the free parameters' count), so it needs no covariance
   /// between poses: the graph may hold ranges, constant-velocity edges, pose priors, biases and
   /// a scale, but no odometry, landmarks or free anchors (q is then nothing).
-  /// Known defect: on a simulated tag ranged one anchor at a time q settles 2.6 times above the
-  /// path's own (RangeSlam.ConstantVelocityGraphLearnsRangeNoiseAndMotionQ), while the range std
-  /// is within 6 %; the redundancy split is the suspect.
+  /// On a simulated tag under white acceleration both settle at the truth
+  /// (RangeSlam.ConstantVelocityGraphLearnsRangeNoiseAndMotionQ). A real path's q is that of
+  /// the white acceleration that explains it best, not its mean squared acceleration.
   struct VarianceComponents {
     std::optional<double> range_sigma;  ///< [m]
     std::optional<double> accel_psd;    ///< [m^2/s^3]
