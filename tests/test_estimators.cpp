@@ -501,7 +501,7 @@ TEST(Shkf, OneStepByHand) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
   ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
-  auto est = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0", ctx);
+  auto est = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,calib=0", ctx);
   ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
   const auto out = est->process(rangeAt(10.0, 2, 5.5));
   ASSERT_TRUE(out.has_value());
@@ -510,7 +510,7 @@ TEST(Shkf, OneStepByHand) {
   EXPECT_EQ(est->statistics().events.at("r_kept_positive"), 1);
   EXPECT_NEAR(est->statistics().estimated_noise.at(2).sigma, 0.05, 1e-12);
   // With the bias estimated, the first weight d_0 = 1 takes the whole innovation as the bias.
-  auto biased = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,bias=1", ctx);
+  auto biased = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,bias=1,calib=0", ctx);
   biased->process(rangeAt(10.0, 1, 3.0));
   biased->process(rangeAt(10.0, 2, 5.5));
   EXPECT_NEAR(biased->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
@@ -561,7 +561,7 @@ TEST(PointFilters, IahckfFirstStatisticByHand) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
   ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
-  auto est = loc::Registry::builtin().create("uwb-iahckf:sigma=0.1,iq=0", ctx);
+  auto est = loc::Registry::builtin().create("uwb-iahckf:sigma=0.1,iq=0,calib=0", ctx);
   ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
   ASSERT_TRUE(est->process(rangeAt(10.0, 2, 5.2)).has_value());
   const double predicted =

@@ -363,12 +363,17 @@ TEST(NlosSimulated, FiltersThatWeightByTheModelBeatThemselves) {
   const auto model_path =
       (std::filesystem::path(ds.manifest.rawlog).parent_path() / "room.json").string();
   model.save(model_path);
-  // Measured (seed 2): uwb-ekf 0.149 -> 0.139 m, uwb-ckf 0.274 -> 0.132 m, graph-uwb-odom
-  // 0.138 -> 0.042 m.
-  for (const std::string m : {"uwb-ekf", "uwb-ckf", "graph-uwb-odom"}) {
+  // The Kalman filters with their fixed range model (calib=0): the model's weighting is what is
+  // measured here. Measured (seed 2): uwb-ekf 0.149 -> 0.139 m, uwb-ckf 0.274 -> 0.132 m,
+  // graph-uwb-odom 0.138 -> 0.042 m. With the learning start (the default) the filters learn a
+  // std that counts the NLOS ranges, and the weighting gains less: uwb-ekf 0.150 -> 0.145 m,
+  // uwb-ckf 0.149 -> 0.138 m.
+  for (const std::string m : {"uwb-ekf:calib=0", "uwb-ckf:calib=0", "graph-uwb-odom"}) {
     const auto plain = eval::evaluateMethod(ds, m, 1, 1);
-    const auto judged =
-        eval::evaluateMethod(ds, m + ":nlos_model=" + model_path + ",nlos_use=weight", 1, 1);
+    const auto judged = eval::evaluateMethod(
+        ds, m + (m.find(':') == std::string::npos ? ":" : ",") + "nlos_model=" + model_path +
+                ",nlos_use=weight",
+        1, 1);
     std::printf("[ NLOS SIM ] %s %.3f -> %.3f m\n", m.c_str(), plain.metrics.rmse_2d,
                 judged.metrics.rmse_2d);
     EXPECT_LT(judged.metrics.rmse_2d, 0.95 * plain.metrics.rmse_2d) << m;

@@ -544,7 +544,18 @@ std::vector<PoseEstimate> GraphSmoother::doFinishAll() {
   if (front_ && !corners_.empty()) addLandmarks(g, times);
   addRanges(g, times);
   solveBatch(g);
-  if (constantVelocity()) return trackPoses(g, times);
+  if (constantVelocity()) {
+    // The smoothed path's mean squared speed over its span (what a filter's velocity decay is
+    // matched to: see UwbEkf::learn).
+    double speed_sq = 0.0, span = 0.0;
+    for (size_t i = 1; i < g.poses(); ++i) {
+      const double dt = times[i] - times[i - 1];
+      speed_sq += (g.pose(i) - g.pose(i - 1)).head<2>().squaredNorm() / dt;
+      span += dt;
+    }
+    if (span > 0.0) stats_.mean_square_speed = speed_sq / span;
+    return trackPoses(g, times);
+  }
   std::vector<PoseEstimate> out;
   out.reserve(g.poses());
   const auto covariances =

@@ -75,6 +75,8 @@ struct EstimatorStatistics {
   std::optional<double> estimated_range_scale;
   /// A learnt white-acceleration spectral density of the tag's motion [m^2/s^3] (q=auto).
   std::optional<double> estimated_accel_psd;
+  /// The learnt path's mean squared speed [m^2/s^2], with the q above (motion=cv).
+  std::optional<double> mean_square_speed;
 };
 
 /// Counts one rejection by reason (and by anchor when anchor_id >= 0).
