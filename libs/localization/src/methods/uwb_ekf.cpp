@@ -150,7 +150,10 @@ std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
     accepted->measurement.range =
         noise_.correct(accepted->measurement.anchor_id, accepted->measurement.range);
     const auto planar = uwb::projectToPlane(accepted->measurement.range, dz);
-    if (!planar) return std::nullopt;
+    if (!planar) {
+      countRejection(uwb::RejectReason::kBelowHeight, accepted->measurement.anchor_id);
+      return std::nullopt;
+    }
     accepted->planar = *planar;
   }
 

@@ -33,6 +33,8 @@ class ParticleLocalizer : public Estimator {
   ParticleLocalizer(const ParticleCoreParams& core, const EstimatorContext& context,
                     std::vector<std::unique_ptr<EpochMeasurement>> measurements,
                     std::unique_ptr<PosteriorStep> posterior);
+  ParticleLocalizer(const ParticleLocalizer&) = delete;  // start_'s callbacks hold `this`
+  ParticleLocalizer& operator=(const ParticleLocalizer&) = delete;
 
   std::vector<std::pair<std::string, std::string>> artifacts() const override;
   const ParticleFilter& filter() const { return pf_; }

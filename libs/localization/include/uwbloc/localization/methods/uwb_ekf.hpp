@@ -8,6 +8,11 @@
 // `readmit_tol` of the prediction. The second test matters where the other anchors leave a
 // direction unobserved (on the line through two anchors): there the state's variance, and with
 // it the gate, grows without bound, and a steady wrong range would otherwise be readmitted.
+//
+// The range model and q are learnt at the start (calib, default 60 s): the first seconds of
+// ranges go to graph-uwb as well (LearningStart), and the filter then corrects every range by the
+// learnt scale (and biases, with calib_bias), and widens sigma and raises q to what was learnt
+// (never below their start values); see UwbEkf::learn.
 #pragma once
 
 #include <Eigen/Core>
@@ -75,6 +80,8 @@ struct UwbEkfParams {
 class UwbEkf : public UwbEstimator {
  public:
   UwbEkf(const UwbEkfParams& params, const EstimatorContext& context);
+  UwbEkf(const UwbEkf&) = delete;  // start_'s callbacks hold `this`
+  UwbEkf& operator=(const UwbEkf&) = delete;
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
