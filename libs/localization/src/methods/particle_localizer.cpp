@@ -132,11 +132,7 @@ std::vector<PoseEstimate> ParticleLocalizer::doFinishAll() {
   return out;
 }
 
-std::optional<PoseEstimate> ParticleLocalizer::doFinish() {
-  auto all = doFinishAll();
-  if (all.empty()) return std::nullopt;
-  return all.back();
-}
+std::optional<PoseEstimate> ParticleLocalizer::doFinish() { return newestOfFinishAll(); }
 
 std::optional<PoseEstimate> ParticleLocalizer::doProcess(const Event& event) {
   return start_.process(event, learnt_, step_);

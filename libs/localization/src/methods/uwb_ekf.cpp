@@ -135,11 +135,7 @@ std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
 
 std::vector<PoseEstimate> UwbEkf::doFinishAll() { return start_.finish(learnt_, step_); }
 
-std::optional<PoseEstimate> UwbEkf::doFinish() {
-  auto all = doFinishAll();
-  if (all.empty()) return std::nullopt;
-  return all.back();
-}
+std::optional<PoseEstimate> UwbEkf::doFinish() { return newestOfFinishAll(); }
 
 std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
   auto accepted = acceptRange(event);

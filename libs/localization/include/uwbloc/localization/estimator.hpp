@@ -136,6 +136,13 @@ class Estimator {
   }
   /// Forget the state after divergence; the next events re-initialise.
   virtual void reset() {}
+  /// doFinish() of a method whose doFinishAll() hands out queued estimates (a learning start):
+  /// the newest of them.
+  std::optional<PoseEstimate> newestOfFinishAll() {
+    auto all = doFinishAll();
+    if (all.empty()) return std::nullopt;
+    return all.back();
+  }
 
   void countRejection(uwb::RejectReason reason, int anchor_id);
   void countRejection(const std::string& reason, int anchor_id = -1);
