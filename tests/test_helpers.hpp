@@ -7,20 +7,35 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
+#include <vector>
+
+#include <unistd.h>
 
 #include "uwbloc/dataset/data_dir.hpp"
 
 namespace uwbloc::test {
 
-/// A fresh folder under the system temp dir, named after the running test.
+/// A fresh folder under the system temp dir, named after the running test and the process (two
+/// suites running at once on one machine must not share it), removed when the process ends.
 inline std::filesystem::path scratchDir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   std::string name = std::string("uwbloc_") + info->test_suite_name() + "_" + info->name();
   for (auto& c : name)
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') c = '_';
+  name += "_" + std::to_string(::getpid());
   const auto dir = std::filesystem::temp_directory_path() / name;
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  struct RemovedAtExit {
+    std::vector<std::filesystem::path> dirs;
+    ~RemovedAtExit() {
+      std::error_code ignored;
+      for (const auto& d : dirs) std::filesystem::remove_all(d, ignored);
+    }
+  };
+  static RemovedAtExit made;
+  made.dirs.push_back(dir);
   return dir;
 }
 

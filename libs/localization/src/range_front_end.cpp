@@ -192,16 +192,57 @@ std::optional<AcceptedRange> UwbEstimator::acceptRange(const Event& event) {
   return accepted;
 }
 
-std::optional<PoseEstimate> EpochUwbEstimator::doProcess(const Event& event) {
-  const auto accepted = acceptRange(event);
-  if (!accepted) return std::nullopt;
+bool UwbEstimator::correctRange(AcceptedRange& r, const RangeNoiseModel& model) {
+  const int id = r.measurement.anchor_id;
+  if (model.scale() == 0.0 && model.bias(id) == 0.0) return true;
+  r.measurement.range = model.correct(id, r.measurement.range);
+  const auto planar = uwb::projectToPlane(r.measurement.range, r.anchor.z() - r.measurement.tag_on_robot.z());
+  if (!planar) {
+    countRejection(uwb::RejectReason::kBelowHeight, id);
+    return false;
+  }
+  r.planar = *planar;
+  return true;
+}
+
+EpochUwbEstimator::EpochUwbEstimator(const RangeFrontEndParams& params,
+                                     const EstimatorContext& context, AutoDouble window,
+                                     TagUse tags, const RangeLearningParams& learning,
+                                     const AutoDouble* q)
+    : UwbEstimator(params, context, tags),
+      epochs_(window),
+      sigma_auto_(params.sigma.isAuto()),
+      calib_bias_(learning.calib_bias),
+      sigma_(params.sigmaValue()),
+      noise_(params.sigmaValue()) {
+  if (auto learner = makeRangeLearner(params.sigma, q, learning, context))
+    start_ = LearningStart(std::move(learner), learning.calib);
+}
+
+void EpochUwbEstimator::learn(const EstimatorStatistics& learnt) {
+  noise_.learnFrom(learnt, calib_bias_, sigma_auto_);
+  noise_.report(stats_);
+  if (sigma_auto_ && !estimatesOwnNoise() && learnt.estimated_range_sigma)
+    sigma_ = noise_.widened(sigma_, stats_);
+  ++stats_.events["range_model_learnt"];
+}
+
+std::optional<PoseEstimate> EpochUwbEstimator::step(const Event& event) {
+  auto accepted = acceptRange(event);
+  if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
   if (auto epoch = epochs_.add(*accepted)) return onEpoch(*epoch);
   return std::nullopt;
 }
 
-std::optional<PoseEstimate> EpochUwbEstimator::doFinish() {
-  if (auto epoch = epochs_.flush()) return onEpoch(*epoch);
-  return std::nullopt;
+std::optional<PoseEstimate> EpochUwbEstimator::doProcess(const Event& event) {
+  return start_.process(event, learnt_, step_);
+}
+
+std::vector<PoseEstimate> EpochUwbEstimator::doFinishAll() {
+  auto out = start_.finish(learnt_, step_);
+  if (auto epoch = epochs_.flush())
+    if (auto last = onEpoch(*epoch)) out.push_back(*last);
+  return out;
 }
 
 uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::PlanarRange>& ranges) {

@@ -5,7 +5,7 @@
 namespace uwbloc::loc {
 
 std::optional<PoseEstimate> FixFilter::onEpoch(const std::vector<AcceptedRange>& epoch) {
-  const uwb::Fix fix = multilaterate(fix_.solver, toPlanar(epoch, fix_.front.sigmaValue()));
+  const uwb::Fix fix = multilaterate(fix_.solver, toPlanar(epoch, rangeSigma()));
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));
     return std::nullopt;

@@ -7,7 +7,8 @@ namespace uwbloc::loc {
 MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
                                                    const MultilaterationParams& params,
                                                    const EstimatorContext& context)
-    : EpochUwbEstimator(params.front, context, params.epoch_window),
+    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kPrimary,
+                        params.learning),
       solver_(solver),
       params_(params) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
@@ -15,7 +16,7 @@ MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
 
 std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
-  const auto planar = toPlanar(epoch, params_.front.sigmaValue());
+  const auto planar = toPlanar(epoch, rangeSigma());
   const uwb::Fix fix = multilaterate(solver_, planar);
   if (!fix.ok()) {
     countRejection(std::string("epoch_") + uwb::toString(fix.status));

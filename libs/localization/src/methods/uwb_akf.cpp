@@ -37,7 +37,9 @@ UwbEkfParams ekfParams(const UwbAkfParams& p) {
   UwbEkfParams e;
   e.front = p.kf.fix.front;
   e.epoch_window = p.kf.fix.epoch_window;
+  e.q = p.kf.q;
   e.accel_psd = p.kf.accel_psd;
+  e.learning = p.kf.fix.learning;
   e.velocity_tau = p.kf.velocity_tau;
   e.init_residual = p.kf.fix.init_residual;
   return e;

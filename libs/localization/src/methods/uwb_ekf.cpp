@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <sstream>
 
 #include "uwbloc/localization/registry.hpp"
 #include "uwbloc/uwb/range_model.hpp"
@@ -17,51 +16,18 @@ UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
   if (params.start == EkfStart::kStartPose) start_pose_ = context.initial_pose;
   params_.accel_psd = params.q.value.value_or(params.accel_psd);
-  if (params.calib > 0.0 &&
-      (params.front.sigma.isAuto() || params.q.isAuto() || params.calib_bias != BiasMode::kOff)) {
-    // The ranges alone, as this filter sees them: graph-uwb over the first seconds.
-    std::ostringstream spec;
-    spec << "graph-uwb:sigma=" << params.front.sigma << ",bias=" << enumName(params.calib_bias)
-         << ",q=" << params.q;
-    start_ = LearningStart(Registry::builtin().create(spec.str(), context), params.calib);
-  }
+  if (auto learner = makeRangeLearner(params.front.sigma, &params.q, params.learning, context))
+    start_ = LearningStart(std::move(learner), params.learning.calib);
 }
 
 void UwbEkf::learn(const EstimatorStatistics& learnt) {
-  const bool biased =
-      params_.calib_bias == BiasMode::kOn || learnt.events.count("range_bias_estimated") != 0;
-  noise_.learn(learnt.estimated_noise, biased,
-               params_.front.sigma.isAuto() ? learnt.estimated_range_sigma : std::nullopt,
-               learnt.estimated_range_scale);
+  noise_.learnFrom(learnt, params_.learning.calib_bias, params_.front.sigma.isAuto());
   noise_.report(stats_);
-  // The filter's std is then the corrected range's (the ranges are corrected as they come), but
-  // learning only widens it from its start value (0.15 m), as it only raises q (below): a
-  // tighter gate is the side that fails. Measured: Hanyang NLOS B3 learns 0.047 m and scores
-  // 0.530 m with it against 0.386 m at 0.15; the simulated AGV room learns 0.115 m (0.417 against
-  // 0.158 m). Plaza2 learns 0.53 m, which it needs (31 m at 0.15 with the scale and q learnt).
-  if (params_.front.sigma.isAuto() && learnt.estimated_range_sigma) {
-    if (noise_.sigma() > params_.front.sigmaValue())
-      params_.front.sigma.value = noise_.sigma();
-    else
-      ++stats_.events["sigma_kept_at_start"];
-  }
-  if (params_.q.isAuto() && learnt.estimated_accel_psd) {
-    // The learnt q is constant velocity's (short-term accelerations). The filter's velocity
-    // decays (tau, a guard against a wrong velocity that persists), and a decaying velocity
-    // holds a per-axis spread of q tau / 2 only: q is raised until that is the path's own (half
-    // its mean squared speed per axis), q = ms / tau. Learning only raises q above its start
-    // value (0.1): a minute of motion is a small sample, and a stiffer filter is the side that
-    // diverges (on the MRPT demo q 0.086 instead of 0.1 turns uwb-hinf-ckf from 0.336 to 1.99 m
-    // and uwb-shkf from 0.713 to 1.83 m, as a faulty beacon captures them or not).
-    double q = *learnt.estimated_accel_psd;
-    if (params_.velocity_tau > 0.0 && learnt.mean_square_speed)
-      q = std::max(q, *learnt.mean_square_speed / params_.velocity_tau);
-    if (q > params_.accel_psd) {
-      params_.accel_psd = q;
-      ++stats_.events["q_raised"];
-    }
-    stats_.estimated_accel_psd = params_.accel_psd;
-  }
+  // The filter's std is then the corrected range's (the ranges are corrected as they come),
+  // only ever widened; q only ever raised (range_noise.hpp).
+  if (params_.front.sigma.isAuto() && learnt.estimated_range_sigma)
+    params_.front.sigma.value = noise_.widened(params_.front.sigmaValue(), stats_);
+  learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
   ++stats_.events["range_model_learnt"];
 }
 
@@ -139,19 +105,7 @@ std::optional<PoseEstimate> UwbEkf::doFinish() { return newestOfFinishAll(); }
 
 std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
   auto accepted = acceptRange(event);
-  if (!accepted) return std::nullopt;
-  if (noise_.scale() != 0.0 || noise_.bias(accepted->measurement.anchor_id) != 0.0) {
-    // The learnt model's correction, before anything reads the range.
-    const double dz = accepted->anchor.z() - accepted->measurement.tag_on_robot.z();
-    accepted->measurement.range =
-        noise_.correct(accepted->measurement.anchor_id, accepted->measurement.range);
-    const auto planar = uwb::projectToPlane(accepted->measurement.range, dz);
-    if (!planar) {
-      countRejection(uwb::RejectReason::kBelowHeight, accepted->measurement.anchor_id);
-      return std::nullopt;
-    }
-    accepted->planar = *planar;
-  }
+  if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
 
   if (!initialised_) {
     if (!initialise(*accepted)) return std::nullopt;

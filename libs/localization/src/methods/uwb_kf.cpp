@@ -7,8 +7,14 @@
 namespace uwbloc::loc {
 
 UwbKf::UwbKf(const UwbKfParams& params, const EstimatorContext& context)
-    : FixFilter(params.fix, context), params_(params) {
+    : FixFilter(params.fix, context, &params.q), params_(params) {
+  params_.accel_psd = params.q.value.value_or(params.accel_psd);
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
+}
+
+void UwbKf::learn(const EstimatorStatistics& learnt) {
+  FixFilter::learn(learnt);
+  if (!estimatesOwnNoise()) learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
 }
 
 void UwbKf::start(const uwb::Fix& fix) { kalman::initialiseFromFix(fix, x_, p_); }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/multilateration.hpp"
 
@@ -175,6 +176,10 @@ class UwbEstimator : public Estimator {
                primaryTag(context)) {}
   /// The accepted range carried by `event`; nothing for other events and rejected ranges.
   std::optional<AcceptedRange> acceptRange(const Event& event);
+  /// A learnt model's correction of an accepted range (scale and bias), re-projected to the
+  /// plane, before anything reads it; false, counted as below_height against its anchor, when
+  /// the corrected range no longer reaches the anchor's height.
+  bool correctRange(AcceptedRange& r, const RangeNoiseModel& model);
 
   RangeFrontEnd front_;
 };
@@ -209,17 +214,47 @@ class EpochBuffer {
 
 /// Base of the per-epoch UWB methods: accepted ranges are grouped into epochs and each closed
 /// epoch (and the last, open one at the end of the stream) goes to onEpoch().
+///
+/// With a learning start (`learning.calib` > 0 and something to learn: sigma=auto, calib_bias,
+/// or a subclass's q=auto), the first seconds of ranges go to graph-uwb as well; its model then
+/// corrects every range (scale, and biases with calib_bias) and widens the std in force,
+/// rangeSigma() (range_noise.hpp), and subclasses take the rest in learn().
 class EpochUwbEstimator : public UwbEstimator {
+ public:
+  EpochUwbEstimator(const EpochUwbEstimator&) = delete;  // start_'s callbacks hold `this`
+  EpochUwbEstimator& operator=(const EpochUwbEstimator&) = delete;
+
  protected:
+  /// `q`: the subclass's q key, when it has one (its auto also calls for learning).
   EpochUwbEstimator(const RangeFrontEndParams& params, const EstimatorContext& context,
-                    AutoDouble window, TagUse tags = TagUse::kPrimary)
-      : UwbEstimator(params, context, tags), epochs_(window) {}
+                    AutoDouble window, TagUse tags = TagUse::kPrimary,
+                    const RangeLearningParams& learning = {BiasMode::kOff, 0.0},
+                    const AutoDouble* q = nullptr);
   std::optional<PoseEstimate> doProcess(const Event& event) final;
-  std::optional<PoseEstimate> doFinish() final;
+  std::vector<PoseEstimate> doFinishAll() final;
+  std::optional<PoseEstimate> doFinish() final { return newestOfFinishAll(); }
   virtual std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) = 0;
+  /// The learnt model (the learner's statistics) into the method: the range correction and the
+  /// std; a subclass that learns more extends it.
+  virtual void learn(const EstimatorStatistics& learnt);
+  /// The range std in force: the method's, or the learnt one (widened only).
+  double rangeSigma() const { return sigma_; }
+  /// A method that estimates its noise itself (Sage-Husa) takes only the learnt range
+  /// correction, and keeps its own std (and q) to start its estimates from.
+  virtual bool estimatesOwnNoise() const { return false; }
 
  private:
+  /// One event after the learning start.
+  std::optional<PoseEstimate> step(const Event& event);
+
   EpochBuffer epochs_;
+  bool sigma_auto_;
+  BiasMode calib_bias_;
+  double sigma_;
+  RangeNoiseModel noise_;
+  LearningStart start_;
+  LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learn(s); };
+  LearningStart::Step step_ = [this](const Event& e) { return step(e); };
 };
 
 /// The per-epoch multilateration solvers.

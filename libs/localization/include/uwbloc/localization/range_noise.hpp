@@ -59,6 +59,43 @@ inline bool scaleExplains(double spread_without, double spread_with) {
          1.0 - (spread_with * spread_with) / (spread_without * spread_without) >= 0.25;
 }
 
+/// The learning start's keys, shared by the range filters and the per-epoch solvers.
+struct RangeLearningParams {
+  /// A range bias per anchor learnt at the start: off by default, because the ranges alone
+  /// take a faulty anchor for a biased one (MRPT demo: biases of -0.20 / -0.38 / +0.22 m from
+  /// a beacon wrong by metres, and uwb-ekf 0.711 m instead of 0.164 m).
+  BiasMode calib_bias = BiasMode::kOff;
+  double calib = 60.0;  ///< seconds of ranges the model is learnt from at the start (0: none)
+
+  template <class V>
+  void visit(V&& v) {
+    v("calib_bias", calib_bias,
+      "a range bias per anchor learnt at the start: 0 (the default: the ranges alone take a "
+      "faulty anchor for a biased one), 1 or auto");
+    v("calib", calib,
+      "seconds of ranges at the start that the range model (sigma, bias, scale) and q are "
+      "learnt from (graph-uwb over them), before they are used; 0: none");
+  }
+};
+
+/// The learner of a method's learning start: graph-uwb with the method's own sigma, calib_bias
+/// and (when the method has one) q. None when `learning.calib` is 0 or nothing is left to learn
+/// (sigma fixed, calib_bias off, q fixed or absent).
+std::unique_ptr<Estimator> makeRangeLearner(const AutoDouble& sigma, const AutoDouble* q,
+                                            const RangeLearningParams& learning,
+                                            const EstimatorContext& context);
+
+/// The q a constant-velocity filter with velocity decay `tau` takes from a learnt one, when `q`
+/// is auto, into `accel_psd` (the q in force; stats: q_raised, estimated_accel_psd):
+/// the learnt q is constant velocity's (short-term accelerations); a decaying velocity holds a
+/// per-axis spread of q tau / 2 only, so q is raised until that is the path's own (half its mean
+/// squared speed per axis), q = ms / tau. Learning only raises q above `q_now`: a minute of
+/// motion is a small sample, and a stiffer filter is the side that diverges (on the MRPT demo q
+/// 0.086 instead of 0.1 turns uwb-hinf-ckf from 0.336 to 1.99 m and uwb-shkf from 0.713 to
+/// 1.83 m, as a faulty beacon captures them or not).
+void learnAccelPsd(const EstimatorStatistics& learnt, const AutoDouble& q, double tau,
+                   double& accel_psd, EstimatorStatistics& stats);
+
 /// A filter's start with a learnt model: the events of the first `span` seconds are kept and
 /// given to a learning method (a batch smoother) as well; when the span is over (or the stream
 /// ends) the learner's statistics go to the filter, and the kept events are filtered. Their
@@ -109,6 +146,15 @@ class RangeNoiseModel {
   }
   /// The std of a corrected range.
   double sigma() const { return learnt_sigma_.value_or(sigma_) / (1.0 + scale()); }
+  /// Takes a learner's statistics (a LearningStart's): the biases when `calib_bias` is on, or
+  /// auto and the learner found one; the std when `sigma_auto`; the scale when one stood out.
+  void learnFrom(const EstimatorStatistics& learnt, BiasMode calib_bias, bool sigma_auto);
+  /// The method's std after learning (sigma=auto): the corrected range's, but only wider than
+  /// `sigma_now`, as a tighter gate is the side that fails (Hanyang NLOS B3 learns 0.047 m and
+  /// uwb-ekf scores 0.530 m with it against 0.386 m at 0.15; the simulated AGV room learns
+  /// 0.115 m, 0.417 against 0.158 m; Plaza2 learns 0.53 m, which it needs). A std kept is
+  /// counted (sigma_kept_at_start).
+  double widened(double sigma_now, EstimatorStatistics& stats) const;
   /// The learnt model into the run's statistics (estimated_noise, estimated_range_sigma).
   void report(EstimatorStatistics& stats) const;
 

@@ -20,6 +20,7 @@ struct FixFilterParams {
   double gate = 13.8;          ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
   int max_gated = 5;           ///< consecutive gated fixes before re-initialising
   double init_residual = 0.5;  ///< largest residual norm of a fix used to (re)initialise [m]
+  RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
 
   template <class V>
   void visit(V&& v) {
@@ -30,13 +31,18 @@ struct FixFilterParams {
     v("gate", gate, "chi-square gate on the position innovation (2 dof)");
     v("max_gated", max_gated, "consecutive gated fixes before re-initialising");
     v("init_residual", init_residual, "largest residual norm of an initialising fix [m]");
+    learning.visit(v);
   }
 };
 
 class FixFilter : public EpochUwbEstimator {
  protected:
-  FixFilter(const FixFilterParams& params, const EstimatorContext& context)
-      : EpochUwbEstimator(params.front, context, params.epoch_window), fix_(params) {}
+  /// `q`: the subclass's q key, when it has one.
+  FixFilter(const FixFilterParams& params, const EstimatorContext& context,
+            const AutoDouble* q = nullptr)
+      : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kPrimary,
+                          params.learning, q),
+        fix_(params) {}
   std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) final;
   void reset() override { initialised_ = false; }
 

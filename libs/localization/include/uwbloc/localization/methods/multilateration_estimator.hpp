@@ -12,12 +12,14 @@ namespace uwbloc::loc {
 struct MultilaterationParams {
   RangeFrontEndParams front;  ///< range checks and gates
   AutoDouble epoch_window;    ///< ranges within this span form one epoch [s]; auto: the data's rate
+  RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
 
   template <class V>
   void visit(V&& v) {
     front.visit(v);
     v("window", epoch_window,
       "epoch window [s], or auto (one round of ranges from the data's rate)");
+    learning.visit(v);
   }
 };
 

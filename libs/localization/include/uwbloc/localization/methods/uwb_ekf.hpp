@@ -40,11 +40,7 @@ struct UwbEkfParams {
   AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
   AutoDouble q;                ///< white-acceleration spectral density [m^2/s^3]; auto: learnt
   double accel_psd = 0.1;      ///< the q in force: q's value, or the learnt one (not a key)
-  /// A range bias per anchor learnt at the start: off by default, because the ranges alone
-  /// take a faulty anchor for a biased one (MRPT demo: biases of -0.20 / -0.38 / +0.22 m from
-  /// a beacon wrong by metres, and uwb-ekf 0.711 m instead of 0.164 m).
-  BiasMode calib_bias = BiasMode::kOff;
-  double calib = 60.0;  ///< seconds of ranges the model is learnt from at the start (0: none)
+  RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
   double velocity_tau = 5.0;   ///< velocity correlation time [s]; 0 = constant velocity
   double gate = 9.0;           ///< chi-square gate on one range innovation (3 sigma, 1 dof)
   int max_gated = 12;          ///< consecutive unused ranges before re-initialising
@@ -61,12 +57,7 @@ struct UwbEkfParams {
     v("q", q,
       "white-acceleration spectral density [m^2/s^3]; auto: learnt at the start when calib > 0, "
       "else 0.1");
-    v("calib_bias", calib_bias,
-      "a range bias per anchor learnt at the start: 0 (the default: the ranges alone take a "
-      "faulty anchor for a biased one), 1 or auto");
-    v("calib", calib,
-      "seconds of ranges at the start that the range model (sigma, bias, scale) and q are "
-      "learnt from (graph-uwb over them), before they are filtered; 0: none");
+    learning.visit(v);
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
     v("gate", gate, "chi-square gate on each range innovation (1 dof)");
     v("max_gated", max_gated,

@@ -17,14 +17,17 @@
 namespace uwbloc::loc {
 
 struct UwbKfParams {
-  FixFilterParams fix;        ///< the fix, the gate and the restart (fix_filter.hpp)
-  double accel_psd = 0.1;     ///< q, white-acceleration spectral density [m^2/s^3]
+  FixFilterParams fix;        ///< the fix, the gate, the restart, the learning (fix_filter.hpp)
+  AutoDouble q;               ///< white-acceleration spectral density [m^2/s^3]; auto: learnt
+  double accel_psd = 0.1;     ///< the q in force: q's value, or the learnt one (not a key)
   double velocity_tau = 5.0;  ///< velocity correlation time [s]; 0 = constant velocity
 
   template <class V>
   void visit(V&& v) {
     fix.visit(v);
-    v("q", accel_psd, "white-acceleration spectral density [m^2/s^3]");
+    v("q", q,
+      "white-acceleration spectral density [m^2/s^3]; auto: learnt at the start when calib > 0 "
+      "(only ever raised from 0.1), else 0.1");
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
   }
 };
@@ -37,6 +40,8 @@ class UwbKf : public FixFilter {
   void start(const uwb::Fix& fix) override;
   bool predictAndUpdate(const uwb::Fix& fix, double dt) override;
   PoseEstimate pose(double t, const Eigen::Vector3d& tag_on_robot) override;
+  /// The range model (EpochUwbEstimator) and q (raised only; range_noise.hpp).
+  void learn(const EstimatorStatistics& learnt) override;
 
   UwbKfParams params_;
   Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
