@@ -1,7 +1,8 @@
-// The sensitivity harness on a short run of the simulated PF-IBAS room with the graph smoother:
-// its conditions, and what sigma=auto / bias=auto promise there (within 1.25x of the true model
-// for a noise std or a bias on every anchor). A bias on one anchor of three is the known gap
-// (the path absorbs it; see README) and is not asserted.
+// The sensitivity harness on the simulated PF-IBAS room (240 s) with the graph smoother: its
+// conditions, and what sigma=auto / bias=auto promise there: within 1.25x of the true model for
+// every noise std and every bias, on every anchor or on one of three. The one-anchor bias is
+// found by the variance the biases explain (1.16-1.17x at 0.5, 1 and 3 m); the offsets alone,
+// read from the solution without biases, missed it (19.9x, 39.7x, 112x).
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -26,7 +27,7 @@ TEST(Sensitivity, GraphDefaultsMatchTheTrueModel) {
   eval::SensitivityOptions o;
   o.scenario = std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/pfibas_room.ini";
   o.work_dir = (test::scratchDir() / "sensitivity").string();
-  o.duration = 120.0;
+  o.duration = 240.0;  // the span (uwbloc sensitivity's default)
   o.seeds = 1;
   o.methods = {"graph-uwb-odom"};
   const auto cells = eval::runSensitivity(o, nullptr);
@@ -35,8 +36,9 @@ TEST(Sensitivity, GraphDefaultsMatchTheTrueModel) {
     std::printf("[ SENSITIV ] %-28s defaults %.3f m, true model %.3f m (%.2f)\n",
                 c.condition.c_str(), c.rmse_defaults, c.rmse_true, c.ratio());
     ASSERT_TRUE(std::isfinite(c.rmse_defaults)) << c.condition;
-    if (c.condition.rfind("sigma", 0) == 0 ||
-        c.condition.find("every anchor") != std::string::npos || c.condition.rfind("clean", 0) == 0)
+    // Every std and every bias, on one anchor of three too (found by the variance the biases
+    // explain; the offsets alone missed 0.5 m, at 19.9x); the NLOS spans have no true model.
+    if (c.condition.rfind("every range NLOS", 0) != 0)
       EXPECT_LE(c.rmse_defaults, 1.25 * c.rmse_true) << c.condition;
   }
   const auto json = nlohmann::json::parse(eval::formatSensitivityJson(cells));

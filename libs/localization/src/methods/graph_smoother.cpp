@@ -518,6 +518,27 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       ++stats_.events["range_bias_estimated"];
       p.estimate_bias = true;
       if (!solveOnce(g, p)) return;
+    } else if (auto_sigma && params_.bias_trial && !constantVelocity()) {
+      // The path hides a bias on one anchor among few from the offsets; the std does not: the
+      // biases are tried free, and stay when they explain a quarter of the range variance
+      // (scaleExplains on the std without and with them). Every bias is freed, not only those
+      // beyond the noise: a bias on every anchor alike within the noise is one too (simulated
+      // greenhouse R3, 1 m under 1 m noise: 0.203 m with every bias free, 1.18 m with the
+      // biases beyond the std only, 0.449 m with none).
+      const auto without = g.values();
+      const graph::RangeGraphParams p_without = p;
+      p.estimate_bias = true;
+      const bool explains = solveOnce(g, p) && estimateSigma() &&
+                            scaleExplains(p_without.range_sigma, p.range_sigma);
+      if (explains) {
+        ++stats_.events["range_bias_estimated"];
+        ++stats_.events["range_bias_explains_variance"];
+      } else {
+        p = p_without;
+        g.restore(without);
+        g.build(p);
+        stats_.estimated_range_sigma = p.range_sigma;
+      }
     }
   } else if (p.estimate_bias != (params_.bias == BiasMode::kOn)) {
     p.estimate_bias = params_.bias == BiasMode::kOn;

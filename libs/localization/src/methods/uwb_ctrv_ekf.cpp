@@ -1,5 +1,6 @@
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "uwbloc/localization/kalman/kalman.hpp"
@@ -11,12 +12,17 @@ UwbCtrvEkf::UwbCtrvEkf(const UwbCtrvEkfParams& params, const EstimatorContext& c
   if (context.initial_pose) start_heading_ = context.initial_pose->z();
 }
 
+void UwbCtrvEkf::learn(const EstimatorStatistics& learnt) {
+  FixFilter::learn(learnt);
+  if (learnt.mean_square_speed) start_speed_var_ = std::max(1.0, *learnt.mean_square_speed);
+}
+
 // At rest at the fix; the heading from the start pose when known, else unknown (std pi).
 void UwbCtrvEkf::start(const uwb::Fix& fix) {
   x_ << fix.position, 0.0, start_heading_.value_or(0.0), 0.0;
   p_.setZero();
   p_.topLeftCorner<2, 2>() = fix.covariance;
-  p_(2, 2) = 1.0;
+  p_(2, 2) = start_speed_var_;
   p_(3, 3) = start_heading_ ? 0.1 : M_PI * M_PI;
   p_(4, 4) = 0.25;
 }

@@ -146,11 +146,12 @@ std::optional<MultitagFix> solveMultitag(const std::vector<AcceptedRange>& epoch
 }
 
 UwbMultitag::UwbMultitag(const UwbMultitagParams& params, const EstimatorContext& context)
-    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kAll),
+    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kAll,
+                        params.learning),
       params_(params) {}
 
 Eigen::Matrix3d UwbMultitag::scaledCovariance(const MultitagFix& fix, size_t ranges) {
-  const double sigma = params_.front.sigmaValue();
+  const double sigma = rangeSigma();
   if (ranges > 3) {
     const double v = fix.rms_residual * fix.rms_residual * static_cast<double>(ranges) /
                      static_cast<double>(ranges - 3);
@@ -221,7 +222,7 @@ std::optional<PoseEstimate> UwbMultitag::onEpoch(const std::vector<AcceptedRange
   const double t = epochTime(epoch);
   std::optional<Eigen::Vector3d> start;
   if (last_ && t - last_t_ <= params_.restart_after) start = last_;
-  const auto fix = solveMultitag(epoch, params_.front.sigmaValue(), params_.huber,
+  const auto fix = solveMultitag(epoch, rangeSigma(), params_.huber,
                                  params_.max_iterations, start);
   if (!fix) {
     countRejection(epoch.size() < 3 ? "epoch_too_few_ranges" : "epoch_no_solution");

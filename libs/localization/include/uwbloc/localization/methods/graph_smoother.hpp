@@ -39,6 +39,9 @@ struct GraphSmootherParams {
   GraphMotion motion = GraphMotion::kOdometry;          ///< what links the pose vertices
   AutoDouble accel_psd;  ///< motion=cv: q [m^2/s^3]; auto: estimated with the range std
   BiasMode bias = BiasMode::kAuto;                      ///< a range bias per anchor
+  /// bias=auto with sigma=auto: also try the biases free (a bias on one anchor among few, which
+  /// the path hides from the offsets)
+  bool bias_trial = true;
   BiasMode scale = BiasMode::kAuto;  ///< a range scale common to the anchors: z = (1 + s) d + b
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
   bool estimate_anchors = false;  ///< anchors' x, y with a prior
@@ -75,6 +78,10 @@ struct GraphSmootherParams {
     v("bias", bias,
       "a range bias per anchor: 0, 1 or auto (when an anchor's median residual exceeds its "
       "residual spread)");
+    v("bias_trial", bias_trial,
+      "bias=auto with sigma=auto: when no offset stands out, also solve with the biases free and "
+      "keep them when they explain a quarter of the range variance (a bias on one anchor among "
+      "few, which the path hides from the offsets)");
     v("scale", scale,
       "a range scale common to every anchor (z = (1 + s) d + bias): 0, 1 or auto (when the "
       "residuals grow with the distance, alike in both halves of the run)");

@@ -41,9 +41,13 @@ class UwbCtrvEkf : public FixFilter {
   void start(const uwb::Fix& fix) override;
   bool predictAndUpdate(const uwb::Fix& fix, double dt) override;
   PoseEstimate pose(double t, const Eigen::Vector3d& tag_on_robot) override;
+  /// The range model (EpochUwbEstimator) and the start's speed spread: the learnt path's mean
+  /// squared speed, when above 1 m^2/s^2.
+  void learn(const EstimatorStatistics& learnt) override;
 
  private:
   UwbCtrvEkfParams params_;
+  double start_speed_var_ = 1.0;  ///< [m^2/s^2]
   std::optional<double> start_heading_;
   Eigen::Matrix<double, 5, 1> x_ = Eigen::Matrix<double, 5, 1>::Zero();
   Eigen::Matrix<double, 5, 5> p_ = Eigen::Matrix<double, 5, 5>::Identity();
