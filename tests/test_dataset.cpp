@@ -342,6 +342,39 @@ TEST(Dataset, RangeFeatureSideFileErrors) {
                              "12.5,3,4.0,-80.1\n");
   expectErrorMentions<InputError>([&] { data::attachRangeFeatures(bad, events); },
                                   {bad + ":2", "expected 5 fields"});
+  const auto no_power = writeText(dir / "h.csv", "t,anchor_id,range,rx_power_dbm\n");
+  expectErrorMentions<InputError>([&] { data::attachRangeFeatures(no_power, events); },
+                                  {no_power + ":1", "no 'fp_power_dbm' column"});
+}
+
+// Two tags ranging to one anchor at the same instant: each range takes its own tag's row (the
+// file written by formatRangeFeatures, read back), and a file without tag_id fits any tag.
+TEST(Dataset, RangeFeaturesKeepEachTagApart) {
+  const auto dir = test::scratchDir();
+  std::vector<loc::Event> events;
+  for (int tag : {0, 1}) {
+    uwb::Range r;
+    r.t = 7.25;
+    r.anchor_id = 2;
+    r.tag_id = tag;
+    r.range = 3.0 + tag;
+    r.rx_power_dbm = -80.0 - tag;
+    r.fp_power_dbm = -85.0 - 5 * tag;
+    events.emplace_back(r);
+  }
+  const std::string text = data::formatRangeFeatures(events);
+  EXPECT_NE(text.find(",tag_id\n"), std::string::npos) << text;
+  auto read = events;
+  for (auto& e : read) std::get<uwb::Range>(e).fp_power_dbm.reset();
+  EXPECT_EQ(data::attachRangeFeatures(writeText(dir / "both.csv", text), read), 2);
+  EXPECT_DOUBLE_EQ(*std::get<uwb::Range>(read[0]).fp_power_dbm, -85.0);
+  EXPECT_DOUBLE_EQ(*std::get<uwb::Range>(read[1]).fp_power_dbm, -90.0);
+  const auto untagged = writeText(dir / "old.csv",
+                                  "t,anchor_id,range,rx_power_dbm,fp_power_dbm\n"
+                                  "7.250000,2,3.0,-80.0,-85.0\n");
+  for (auto& e : read) std::get<uwb::Range>(e).fp_power_dbm.reset();
+  EXPECT_EQ(data::attachRangeFeatures(untagged, read), 2);
+  EXPECT_DOUBLE_EQ(*std::get<uwb::Range>(read[1]).fp_power_dbm, -85.0);
 }
 
 TEST(Ini, CommentsStartOnlyAtTheLineStartOrAfterWhiteSpace) {

@@ -1,6 +1,7 @@
 #include "uwbloc/dataset/dataset.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -13,21 +14,45 @@
 namespace uwbloc::data {
 
 long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& events) {
-  // Key: (time in microseconds, anchor id) -> powers. Rawlog timestamps are stored with
-  // 100 ns resolution, so a microsecond key matches them exactly enough.
-  std::map<std::pair<long long, int>, std::pair<double, double>> features;
+  // Key: (time in microseconds, anchor id, tag id or kAnyTag) -> powers. Rawlog timestamps are
+  // stored with 100 ns resolution, so a microsecond key matches them exactly enough.
+  constexpr int kAnyTag = -1;
+  std::map<std::tuple<long long, int, int>, std::pair<double, double>> features;
+  // Column of t, anchor_id, range, rx_power_dbm, fp_power_dbm, tag_id (-1: none); without a
+  // header, by position.
+  std::array<int, 6> col = {0, 1, 2, 3, 4, -1};
+  size_t width = 0;  // the header's count of columns; 0: no header (5 or 8)
+  static const std::array<const char*, 6> kNames = {"t",           "anchor_id",    "range",
+                                                    "rx_power_dbm", "fp_power_dbm", "tag_id"};
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
-    if (f.empty() || f[0] == "t") return;
-    if (f.size() != 5 && f.size() != 8)
+    if (f.empty()) return;
+    if (f[0] == "t") {
+      for (size_t k = 0; k < kNames.size(); ++k) {
+        const auto it = std::find(f.begin(), f.end(), kNames[k]);
+        col[k] = it == f.end() ? -1 : static_cast<int>(it - f.begin());
+        if (col[k] < 0 && k < 5)
+          throwInputError(path, line, std::string("the header has no '") + kNames[k] +
+                                          "' column (expected 't,anchor_id,range,rx_power_dbm,"
+                                          "fp_power_dbm[,true_range,error,nlos][,tag_id]')");
+      }
+      width = f.size();
+      return;
+    }
+    if (width ? f.size() != width : (f.size() != 5 && f.size() != 8))
       throwInputError(path, line,
-                      "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm' (8 with "
-                      "'true_range,error,nlos'), got " +
-                          std::to_string(f.size()));
-    const double t = parseNumber(f[0], path, line, "t");
-    const int id = parseId(f[1], path, line, "anchor_id");
-    parseNumber(f[2], path, line, "range");
-    features[{std::llround(t * 1e6), id}] = {parseNumber(f[3], path, line, "rx_power_dbm"),
-                                             parseNumber(f[4], path, line, "fp_power_dbm")};
+                      width ? "expected " + std::to_string(width) + " fields, as the header has, got " +
+                                  std::to_string(f.size())
+                            : "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm' (8 "
+                              "with 'true_range,error,nlos'), got " +
+                                  std::to_string(f.size()));
+    const auto field = [&](int k) { return f[static_cast<size_t>(col[static_cast<size_t>(k)])]; };
+    const double t = parseNumber(field(0), path, line, "t");
+    const int id = parseId(field(1), path, line, "anchor_id");
+    parseNumber(field(2), path, line, "range");
+    const int tag = col[5] < 0 ? kAnyTag : parseId(field(5), path, line, "tag_id");
+    features[{std::llround(t * 1e6), id, tag}] = {
+        parseNumber(field(3), path, line, "rx_power_dbm"),
+        parseNumber(field(4), path, line, "fp_power_dbm")};
   });
   long attached = 0;
   for (auto& e : events) {
@@ -35,9 +60,10 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
     if (!r) continue;
     // The rawlog's clock and the CSV's six decimals may differ by a microsecond's rounding.
     const long long us = std::llround(r->t * 1e6);
-    auto it = features.find({us, r->anchor_id});
-    if (it == features.end()) it = features.find({us - 1, r->anchor_id});
-    if (it == features.end()) it = features.find({us + 1, r->anchor_id});
+    auto it = features.end();
+    for (const int tag : {r->tag_id, kAnyTag})
+      for (const long long d : {0LL, -1LL, 1LL})
+        if (it == features.end()) it = features.find({us + d, r->anchor_id, tag});
     if (it == features.end()) continue;
     r->rx_power_dbm = it->second.first;
     r->fp_power_dbm = it->second.second;
@@ -165,11 +191,11 @@ std::optional<std::string> referenceCoverageWarning(const Dataset& ds) {
 std::string formatRangeFeatures(const std::vector<loc::Event>& events,
                                 const std::vector<RangeLabel>* truth) {
   std::string out = "t,anchor_id,range,rx_power_dbm,fp_power_dbm";
-  out += truth ? ",true_range,error,nlos\n" : "\n";
+  out += truth ? ",true_range,error,nlos,tag_id\n" : ",tag_id\n";
   char buf[200];
   for (size_t i = 0; i < events.size(); ++i) {
     const auto* r = std::get_if<uwb::Range>(&events[i]);
-    if (!r || r->tag_id != 0 || !r->rx_power_dbm || !r->fp_power_dbm) continue;
+    if (!r || !r->rx_power_dbm || !r->fp_power_dbm) continue;
     std::snprintf(buf, sizeof buf, "%.6f,%d,%.6f,%.2f,%.2f", r->t, r->anchor_id, r->range,
                   *r->rx_power_dbm, *r->fp_power_dbm);
     out += buf;
@@ -182,7 +208,7 @@ std::string formatRangeFeatures(const std::vector<loc::Event>& events,
         std::snprintf(buf, sizeof buf, ",,,");
       out += buf;
     }
-    out += "\n";
+    out += "," + std::to_string(r->tag_id) + "\n";
   }
   return out;
 }

@@ -54,10 +54,12 @@ std::optional<std::string> referenceCoverageWarning(const Dataset& ds);
 /// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per
 /// range, in the rawlog's order, and when the importer had a reference three more columns,
 /// "true_range,error,nlos" (the distance from the reference, estimated - true, and the label
-/// that the NLOS trainer reads; empty where the reference does not reach).
+/// that the NLOS trainer reads; empty where the reference does not reach), and last "tag_id".
 /// CObservationBeaconRanges has no field for the powers, so the importer writes them here and
-/// the loader attaches them to the ranges with the same time and anchor. Returns how many
-/// ranges received features.
+/// the loader attaches them to the ranges with the same time, anchor and tag. The columns are
+/// read by the header's names (tag_id optional: without it a row fits any tag's range); a file
+/// without a header is read by position (5 or 8 columns, no tag). Returns how many ranges
+/// received features.
 long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& events);
 
 /// What a reference says of one range.
@@ -66,8 +68,8 @@ struct RangeLabel {
   int nlos = -1;            ///< 1 NLOS, 0 LOS, -1 unknown
 };
 
-/// The side file's text: one row per range of the robot's tag that carries its powers; with
-/// `truth` (one per event), the three truth columns too.
+/// The side file's text: one row per range (of every tag) that carries its powers; with
+/// `truth` (one per event), the three truth columns too; the tag last.
 std::string formatRangeFeatures(const std::vector<loc::Event>& events,
                                 const std::vector<RangeLabel>* truth = nullptr);
 
