@@ -110,9 +110,11 @@ TEST(Plaza, RangesAloneLearnTheScale) {
   UWBLOC_REQUIRE_SHARED_DATA(src);
   const auto out = test::scratchDir();
   const auto ds = data::loadDataset(data::importPlaza(src.string(), out.string()).manifest, "");
-  const std::map<std::string, double> bound = {
-      {"graph-uwb", 0.45}, {"uwb-ekf", 1.0}, {"uwb-gn", 2.0}, {"uwb-kf", 2.0},
-      {"uwb-multitag", 2.0}};
+  const std::map<std::string, double> bound = {{"graph-uwb", 0.45},
+                                               {"uwb-ekf", 1.0},
+                                               {"uwb-gn", 2.0},
+                                               {"uwb-kf", 2.0},
+                                               {"uwb-multitag", 2.0}};
   for (const auto& [spec, max_rmse] : bound) {
     const auto run = eval::runMethod(ds, spec, 1);
     const auto errors = eval::associate(run.trajectory, ds.ground_truth);

@@ -22,8 +22,8 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
   // header, by position.
   std::array<int, 6> col = {0, 1, 2, 3, 4, -1};
   size_t width = 0;  // the header's count of columns; 0: no header (5 or 8)
-  static const std::array<const char*, 6> kNames = {"t",           "anchor_id",    "range",
-                                                    "rx_power_dbm", "fp_power_dbm", "tag_id"};
+  static const std::array<const char*, 6> kNames = {
+      "t", "anchor_id", "range", "rx_power_dbm", "fp_power_dbm", "tag_id"};
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
     if (f.empty()) return;
     if (f[0] == "t") {
@@ -31,17 +31,18 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
         const auto it = std::find(f.begin(), f.end(), kNames[k]);
         col[k] = it == f.end() ? -1 : static_cast<int>(it - f.begin());
         if (col[k] < 0 && k < 5)
-          throwInputError(path, line, std::string("the header has no '") + kNames[k] +
-                                          "' column (expected 't,anchor_id,range,rx_power_dbm,"
-                                          "fp_power_dbm[,true_range,error,nlos][,tag_id]')");
+          throwInputError(path, line,
+                          std::string("the header has no '") + kNames[k] +
+                              "' column (expected 't,anchor_id,range,rx_power_dbm,"
+                              "fp_power_dbm[,true_range,error,nlos][,tag_id]')");
       }
       width = f.size();
       return;
     }
     if (width ? f.size() != width : (f.size() != 5 && f.size() != 8))
       throwInputError(path, line,
-                      width ? "expected " + std::to_string(width) + " fields, as the header has, got " +
-                                  std::to_string(f.size())
+                      width ? "expected " + std::to_string(width) +
+                                  " fields, as the header has, got " + std::to_string(f.size())
                             : "expected 5 fields 't,anchor_id,range,rx_power_dbm,fp_power_dbm' (8 "
                               "with 'true_range,error,nlos'), got " +
                                   std::to_string(f.size()));

@@ -196,7 +196,8 @@ bool UwbEstimator::correctRange(AcceptedRange& r, const RangeNoiseModel& model) 
   const int id = r.measurement.anchor_id;
   if (model.scale() == 0.0 && model.bias(id) == 0.0) return true;
   r.measurement.range = model.correct(id, r.measurement.range);
-  const auto planar = uwb::projectToPlane(r.measurement.range, r.anchor.z() - r.measurement.tag_on_robot.z());
+  const auto planar =
+      uwb::projectToPlane(r.measurement.range, r.anchor.z() - r.measurement.tag_on_robot.z());
   if (!planar) {
     countRejection(uwb::RejectReason::kBelowHeight, id);
     return false;

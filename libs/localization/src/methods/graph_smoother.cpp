@@ -528,8 +528,8 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       const auto without = g.values();
       const graph::RangeGraphParams p_without = p;
       p.estimate_bias = true;
-      const bool explains = solveOnce(g, p) && estimateSigma() &&
-                            scaleExplains(p_without.range_sigma, p.range_sigma);
+      const bool explains =
+          solveOnce(g, p) && estimateSigma() && scaleExplains(p_without.range_sigma, p.range_sigma);
       if (explains) {
         ++stats_.events["range_bias_estimated"];
         ++stats_.events["range_bias_explains_variance"];

@@ -14,7 +14,8 @@ UwbKf::UwbKf(const UwbKfParams& params, const EstimatorContext& context)
 
 void UwbKf::learn(const EstimatorStatistics& learnt) {
   FixFilter::learn(learnt);
-  if (!estimatesOwnNoise()) learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
+  if (!estimatesOwnNoise())
+    learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
 }
 
 void UwbKf::start(const uwb::Fix& fix) { kalman::initialiseFromFix(fix, x_, p_); }

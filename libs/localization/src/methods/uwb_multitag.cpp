@@ -146,8 +146,7 @@ std::optional<MultitagFix> solveMultitag(const std::vector<AcceptedRange>& epoch
 }
 
 UwbMultitag::UwbMultitag(const UwbMultitagParams& params, const EstimatorContext& context)
-    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kAll,
-                        params.learning),
+    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kAll, params.learning),
       params_(params) {}
 
 Eigen::Matrix3d UwbMultitag::scaledCovariance(const MultitagFix& fix, size_t ranges) {
@@ -222,8 +221,7 @@ std::optional<PoseEstimate> UwbMultitag::onEpoch(const std::vector<AcceptedRange
   const double t = epochTime(epoch);
   std::optional<Eigen::Vector3d> start;
   if (last_ && t - last_t_ <= params_.restart_after) start = last_;
-  const auto fix = solveMultitag(epoch, rangeSigma(), params_.huber,
-                                 params_.max_iterations, start);
+  const auto fix = solveMultitag(epoch, rangeSigma(), params_.huber, params_.max_iterations, start);
   if (!fix) {
     countRejection(epoch.size() < 3 ? "epoch_too_few_ranges" : "epoch_no_solution");
     return std::nullopt;
