@@ -145,8 +145,8 @@ void RangeGraph::build(const RangeGraphParams& params) {
     p.AddResidualBlock(
         RangeCost::Create(r.range, r.tag, params_.range_sigma * std::sqrt(r.variance_scale)), loss,
         poses_[static_cast<size_t>(r.pose)].data(),
-        anchors_[static_cast<size_t>(r.anchor)].position.data(),
-        &biases_[static_cast<size_t>(r.anchor)], &scale_);
+        anchors_[static_cast<size_t>(r.anchor)].position.data(), &biases_[biasIndex(r.anchor)],
+        &scale_);
   }
   if (params_.estimate_scale && !ranges_.empty()) {
     p.AddResidualBlock(
@@ -185,7 +185,7 @@ void RangeGraph::build(const RangeGraphParams& params) {
     } else {
       p.SetParameterBlockConstant(anchors_[i].position.data());
     }
-    if (params_.estimate_bias) {
+    if (params_.estimate_bias && (!params_.common_bias || i == 0)) {
       p.AddResidualBlock(
           PriorCost<1>::Create(Eigen::Matrix<double, 1, 1>::Zero(),
                                Eigen::Matrix<double, 1, 1>::Constant(params_.bias_prior_sigma)),
@@ -239,7 +239,7 @@ double RangeGraph::rangeResidual(const Range& r, Eigen::Vector3d* gradient,
     *gradient = -(1.0 + scale_) * Eigen::Vector3d(d.x(), d.y(), dtheta) / dist;
   }
   if (distance) *distance = dist;
-  return r.range - (1.0 + scale_) * dist - biases_[static_cast<size_t>(r.anchor)];
+  return r.range - (1.0 + scale_) * dist - biases_[biasIndex(r.anchor)];
 }
 
 double RangeGraph::lossWeight(double whitened) const {
@@ -407,7 +407,7 @@ std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
   std::vector<std::vector<double>> raw(anchors_.size()), centred(anchors_.size());
   for (const auto& r : ranges_) {
     const double e = rangeResidual(r, nullptr);
-    raw[static_cast<size_t>(r.anchor)].push_back(e + biases_[static_cast<size_t>(r.anchor)]);
+    raw[static_cast<size_t>(r.anchor)].push_back(e + biases_[biasIndex(r.anchor)]);
     centred[static_cast<size_t>(r.anchor)].push_back(e);
   }
   std::vector<AnchorResiduals> out;
@@ -415,7 +415,7 @@ std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
     AnchorResiduals a;
     a.anchor_id = anchors_[i].id;
     a.ranges = static_cast<long>(raw[i].size());
-    a.bias = biases_[i];
+    a.bias = biases_[biasIndex(static_cast<int>(i))];
     const auto half = raw[i].begin() + static_cast<std::ptrdiff_t>(raw[i].size() / 2);
     a.median = medianOf(raw[i]);
     a.median_first_half = medianOf({raw[i].begin(), half});

@@ -61,17 +61,17 @@ inline bool scaleExplains(double spread_without, double spread_with) {
 
 /// The learning start's keys, shared by the range filters and the per-epoch solvers.
 struct RangeLearningParams {
-  /// A range bias per anchor learnt at the start: off by default, because the ranges alone
-  /// take a faulty anchor for a biased one (MRPT demo: biases of -0.20 / -0.38 / +0.22 m from
-  /// a beacon wrong by metres, and uwb-ekf 0.711 m instead of 0.164 m).
-  BiasMode calib_bias = BiasMode::kOff;
+  /// A range bias per anchor learnt at the start: auto, since the learner drops biases that
+  /// widen the anchors' residual spreads (the MRPT demo's faulty beacon passed for biases of
+  /// -0.20 / -0.38 / +0.22 m, uwb-ekf 0.710 m instead of 0.163 m, before that test).
+  BiasMode calib_bias = BiasMode::kAuto;
   double calib = 60.0;  ///< seconds of ranges the model is learnt from at the start (0: none)
 
   template <class V>
   void visit(V&& v) {
     v("calib_bias", calib_bias,
-      "a range bias per anchor learnt at the start: 0 (the default: the ranges alone take a "
-      "faulty anchor for a biased one), 1 or auto");
+      "a range bias per anchor learnt at the start: auto (the default: when one stands out or "
+      "explains the variance, and does not widen the anchors' residual spreads), 0 or 1");
     v("calib", calib,
       "seconds of ranges at the start that the range model (sigma, bias, scale) and q are "
       "learnt from (graph-uwb over them), before they are used; 0: none");

@@ -36,6 +36,7 @@ struct RangeGraphParams {
   bool estimate_anchors = false;    ///< anchors' x, y as vertices with a prior (z is held)
   double anchor_prior_sigma = 0.5;  ///< [m]
   bool estimate_bias = false;       ///< a range bias per anchor
+  bool common_bias = false;         ///< with estimate_bias: one bias shared by every anchor
   double bias_prior_sigma = 5.0;    ///< [m]
   bool estimate_scale = false;      ///< a range scale common to every anchor: z = (1 + s) d + b
   double scale_prior_sigma = 0.1;   ///< prior std of s about 0 (a 10 % error is far beyond any)
@@ -154,12 +155,19 @@ class RangeGraph {
   void holdPose(int pose);
 
   size_t poses() const { return poses_.size(); }
+  size_t ranges() const { return ranges_.size(); }
   Eigen::Vector3d pose(size_t i) const { return poses_[i]; }
   const std::vector<uwb::Anchor>& anchors() const { return anchors_; }
-  double bias(size_t anchor_index) const { return biases_[anchor_index]; }
+  double bias(size_t anchor_index) const {
+    return biases_[biasIndex(static_cast<int>(anchor_index))];
+  }
   double scale() const { return scale_; }
 
  private:
+  /// The bias an anchor's ranges take: its own, or the first (common_bias).
+  size_t biasIndex(int anchor) const {
+    return params_.common_bias ? 0 : static_cast<size_t>(anchor);
+  }
   struct Range {
     int pose, anchor;
     double range;
