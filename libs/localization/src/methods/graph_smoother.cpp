@@ -26,14 +26,20 @@ constexpr double kSpreadGrowth = 0.05;
 
 /// The anchors' residual spreads about their own medians, pooled (root mean square weighted by
 /// the range counts).
-double pooledSpread(const std::vector<graph::AnchorResiduals>& anchors) {
+double pooledSpread(const graph::RangeGraph& g) {
   double sum = 0.0;
   long n = 0;
-  for (const auto& a : anchors) {
+  for (const auto& a : g.anchorResiduals()) {
     sum += static_cast<double>(a.ranges) * a.robust_sigma * a.robust_sigma;
     n += a.ranges;
   }
   return n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
+}
+
+/// Whether the solve in `g` has widened the pooled spread from `before` by more than
+/// kSpreadGrowth.
+bool widensSpread(const graph::RangeGraph& g, double before) {
+  return pooledSpread(g) > before * (1.0 + kSpreadGrowth);
 }
 /// Each variance re-estimate needs the marginal covariances of every pose, which grows about
 /// with the square of their number (CARMEN intel with simulated UWB, 9 721 poses: about 2 min);
@@ -479,6 +485,12 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
     return true;
   };
   if ((auto_sigma || auto_q) && !estimateSigma()) return;
+  // Back to an earlier solution and its parameters (a trial that did not stand).
+  auto revert = [&](const graph::RangeGraph::Values& values, const graph::RangeGraphParams& to) {
+    p = to;
+    g.restore(values);
+    g.build(p);
+  };
   // A scale, unlike a bias, is a deterministic error of the whole model: once it is solved, the
   // std is estimated again without it (on Plaza2 the ranges read 6.9 % long; the std falls from
   // 3.2 m, which counted that error, to about 0.6 m).
@@ -529,21 +541,15 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
         stands = false;
         biases_over_scale = true;
       } else {
-        p = p_scale;
-        g.restore(with_scale);
-        g.build(p);
+        revert(with_scale, p_scale);
         stats_.estimated_range_sigma = p.range_sigma;
         if (auto_q) stats_.estimated_accel_psd = p.accel_psd;
       }
     }
-    if (biases_over_scale) {
-      if (auto_q) stats_.estimated_accel_psd = p.accel_psd;
-    } else if (stands) {
+    if (stands) {
       ++stats_.events["range_scale_estimated"];
-    } else {
-      p = p_without;
-      g.restore(without);
-      g.build(p);
+    } else if (!biases_over_scale) {  // (the biases' solution, and its noise, stand)
+      revert(without, p_without);
       if (auto_sigma) stats_.estimated_range_sigma = p.range_sigma;
       if (auto_q) stats_.estimated_accel_psd = p.accel_psd;
     }
@@ -583,15 +589,14 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       // grow (MRPT demo, first 60 s at sigma 0.10: pooled 0.057 m without, 0.068 m with the
       // biases of -0.20 / -0.38 / +0.22 m, and uwb-ekf 0.710 m instead of 0.163 m): the biases
       // are then dropped (event range_bias_rejected_spread).
-      const double spread_without = pooledSpread(g.anchorResiduals());
+      const double spread_without = pooledSpread(g);
       const auto without = g.values();
+      const graph::RangeGraphParams p_without = p;
       p.estimate_bias = true;
       if (!solveOnce(g, p)) return;
-      if (pooledSpread(g.anchorResiduals()) > spread_without * (1.0 + kSpreadGrowth)) {
+      if (widensSpread(g, spread_without)) {
         ++stats_.events["range_bias_rejected_spread"];
-        p.estimate_bias = false;
-        g.restore(without);
-        g.build(p);
+        revert(without, p_without);
       } else {
         ++stats_.events["range_bias_estimated"];
       }
@@ -605,19 +610,16 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       // The biases must not widen the anchors' spreads either (as above).
       const auto without = g.values();
       const graph::RangeGraphParams p_without = p;
-      const double spread_without = pooledSpread(g.anchorResiduals());
+      const double spread_without = pooledSpread(g);
       p.estimate_bias = true;
-      const bool explains =
-          solveOnce(g, p) && estimateSigma() &&
-          scaleExplains(p_without.range_sigma, p.range_sigma) &&
-          pooledSpread(g.anchorResiduals()) <= spread_without * (1.0 + kSpreadGrowth);
+      const bool explains = solveOnce(g, p) && estimateSigma() &&
+                            scaleExplains(p_without.range_sigma, p.range_sigma) &&
+                            !widensSpread(g, spread_without);
       if (explains) {
         ++stats_.events["range_bias_estimated"];
         ++stats_.events["range_bias_explains_variance"];
       } else {
-        p = p_without;
-        g.restore(without);
-        g.build(p);
+        revert(without, p_without);
         stats_.estimated_range_sigma = p.range_sigma;
       }
     }
