@@ -6,10 +6,14 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include "uwbloc/dataset/world.hpp"
 #include "uwbloc/localization/lidar/likelihood_field.hpp"
 #include "uwbloc/localization/pf/particle_filter.hpp"
+#include "uwbloc/localization/range_mixture.hpp"
 
 using namespace uwbloc::loc;
 
@@ -222,4 +226,66 @@ TEST(ParticleFilter, WideStartShrinksOnceConvergedAndGrowsBackOnReset) {
   EXPECT_LT(pf.estimate().mean.head<2>().norm(), p.converged_xy);
   pf.initUniformBox({0, 0, 0}, {2.0, 2.0, M_PI});
   EXPECT_EQ(pf.particles().size(), 1000u);
+}
+
+// ------------------------------------------------------------------ the range-error mixture
+
+TEST(RangeMixture, DensityIsNormalisedAndGaussianWithoutNlos) {
+  uwbloc::loc::RangeMixture m;
+  m.nlos_fraction = 0.6;
+  m.sigma = 0.1;
+  m.nlos_mean = 0.5;
+  double integral = 0.0, mean = 0.0;
+  const double step = 1e-4;
+  for (double e = -2.0; e < 12.0; e += step) {
+    const double p = std::exp(m.logDensity(e));
+    integral += p * step;
+    mean += e * p * step;
+  }
+  EXPECT_NEAR(integral, 1.0, 1e-4);
+  EXPECT_NEAR(mean, 0.6 * 0.5, 1e-3);  // the NLOS part's mean excess, in 60 % of the ranges
+  // Far in the short tail only the Gaussian parts remain (no underflow to -inf).
+  EXPECT_TRUE(std::isfinite(m.logDensity(-30.0)));
+  m.nlos_fraction = 1e-9;
+  EXPECT_NEAR(m.logDensity(0.2), -0.5 * 4.0 - std::log(0.1 * std::sqrt(2.0 * M_PI)), 1e-6);
+}
+
+namespace {
+/// Residuals of three anchors: LOS N(0, 0.1), a share `w` of them long by Exp(mean 0.5); the
+/// third anchor's shifted by `bias3`.
+std::vector<std::pair<int, double>> mixtureResiduals(double w, double bias3, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  std::exponential_distribution<double> excess(1.0 / 0.5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<std::pair<int, double>> out;
+  for (int i = 0; i < 3000; ++i) {
+    const int anchor = 1 + i % 3;
+    double e = noise(rng) + (anchor == 3 ? bias3 : 0.0);
+    if (u(rng) < w) e += excess(rng);
+    out.emplace_back(anchor, e);
+  }
+  return out;
+}
+}  // namespace
+
+TEST(RangeMixture, FitRecoversTheNlosShareTheExcessAndTheNoise) {
+  const auto fit = uwbloc::loc::fitRangeMixture(mixtureResiduals(0.6, 0.0, 7));
+  ASSERT_TRUE(fit);
+  EXPECT_NEAR(fit->mixture.nlos_fraction, 0.6, 0.05);
+  EXPECT_NEAR(fit->mixture.nlos_mean, 0.5, 0.05);
+  EXPECT_NEAR(fit->mixture.sigma, 0.1, 0.015);
+  EXPECT_NEAR(fit->offset, 0.0, 0.02);
+  EXPECT_GT(fit->log_likelihood, fit->biased_gaussian_log_likelihood);
+}
+
+TEST(RangeMixture, GaussianResidualsAndABiasedAnchorAreNotNlos) {
+  // Gaussian noise: the mixture is not worth its parameters.
+  EXPECT_FALSE(uwbloc::loc::fitRangeMixture(mixtureResiduals(0.0, 0.0, 7)));
+  // One anchor 1 m long: a skew over all ranges, but a mean per anchor explains it.
+  EXPECT_FALSE(uwbloc::loc::fitRangeMixture(mixtureResiduals(0.0, 1.0, 7)));
+  // Too few residuals to judge.
+  auto few = mixtureResiduals(0.6, 0.0, 7);
+  few.resize(90);
+  EXPECT_FALSE(uwbloc::loc::fitRangeMixture(few));
 }

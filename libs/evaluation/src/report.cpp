@@ -141,6 +141,10 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
             {"bias", number(n.bias)}, {"sigma", number(n.sigma)}, {"ranges", n.ranges}};
       if (m.estimated_range_sigma) e["estimated_range_sigma"] = number(*m.estimated_range_sigma);
       if (m.estimated_range_scale) e["estimated_range_scale"] = number(*m.estimated_range_scale);
+      if (const auto& x = m.estimated_range_mixture)
+        e["estimated_range_mixture"] = {{"nlos_fraction", number(x->nlos_fraction)},
+                                        {"sigma", number(x->sigma)},
+                                        {"nlos_mean", number(x->nlos_mean)}};
       if (m.estimated_accel_psd) e["estimated_accel_psd"] = number(*m.estimated_accel_psd);
     }
     e["associated"] = m.metrics.associated;
@@ -306,6 +310,13 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
                     num(m, "estimated_range_scale"),
                     100.0 * std::abs(num(m, "estimated_range_scale")),
                     num(m, "estimated_range_scale") >= 0 ? "long" : "short");
+      out << buf;
+    }
+    if (m.contains("estimated_range_mixture")) {
+      const auto& x = m["estimated_range_mixture"];
+      std::snprintf(buf, sizeof buf,
+                    " range likelihood: %.0f %% NLOS (+%.3f m mean), LOS std %.3f m;",
+                    100.0 * num(x, "nlos_fraction"), num(x, "nlos_mean"), num(x, "sigma"));
       out << buf;
     }
     if (m.contains("estimated_accel_psd")) {

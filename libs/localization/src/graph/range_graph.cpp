@@ -403,6 +403,15 @@ ScaleEvidence RangeGraph::scaleEvidence() const {
   return out;
 }
 
+std::vector<std::pair<int, double>> RangeGraph::rangeResiduals() const {
+  std::vector<std::pair<int, double>> out;
+  out.reserve(ranges_.size());
+  for (const auto& r : ranges_)
+    out.emplace_back(anchors_[static_cast<size_t>(r.anchor)].id,
+                     rangeResidual(r, nullptr) + biases_[biasIndex(r.anchor)]);
+  return out;
+}
+
 std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
   std::vector<std::vector<double>> raw(anchors_.size()), centred(anchors_.size());
   for (const auto& r : ranges_) {

@@ -632,6 +632,12 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       stats_.estimated_noise[a.anchor_id] = {p.estimate_bias ? a.bias : a.median, a.robust_sigma,
                                              a.ranges};
   if (p.estimate_scale) stats_.estimated_range_scale = g.scale();
+  if (auto_sigma) {
+    if (auto fit = fitRangeMixture(g.rangeResiduals())) {
+      stats_.estimated_range_mixture = fit->mixture;
+      ++stats_.events["range_mixture_learnt"];
+    }
+  }
 }
 
 std::vector<PoseEstimate> GraphSmoother::doFinishAll() {

@@ -12,6 +12,7 @@
 
 #include "uwbloc/localization/events.hpp"
 #include "uwbloc/localization/params.hpp"
+#include "uwbloc/localization/range_mixture.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/types.hpp"
 
@@ -73,6 +74,9 @@ struct EstimatorStatistics {
   std::optional<double> estimated_range_sigma;
   /// The range scale learnt from the data, when one stood out: z = (1 + s) d + bias.
   std::optional<double> estimated_range_scale;
+  /// The LOS / NLOS mixture learnt from the range residuals, when it explains them better than
+  /// one Gaussian (range_mixture.hpp).
+  std::optional<RangeMixture> estimated_range_mixture;
   /// A learnt white-acceleration spectral density of the tag's motion [m^2/s^3] (q=auto).
   std::optional<double> estimated_accel_psd;
   /// The learnt path's mean squared speed [m^2/s^2], with the q above (motion=cv).

@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "uwbloc/localization/params.hpp"
@@ -135,6 +136,9 @@ class RangeGraph {
     std::optional<double> accel_psd;    ///< [m^2/s^3]
   };
   VarianceComponents estimateVarianceComponents();
+  /// After solve(): each range's anchor id and residual before its anchor's bias,
+  /// z - (1 + scale) d [m], in the order added.
+  std::vector<std::pair<int, double>> rangeResiduals() const;
   /// After solve(): each anchor's range residual statistics (ranges in the order added).
   std::vector<AnchorResiduals> anchorResiduals() const;
   /// After solve(): the residuals' slope against distance (see ScaleEvidence).

@@ -118,8 +118,12 @@ struct UwbPartParams {
   /// The NLOS test judges ranges against the filter's pose; when most of an epoch's ranges (at
   /// least 2) fail it this many epochs in a row, the pose is more likely wrong than the ranges,
   /// and the test is suspended (the ranges are used) until they agree with the pose again.
+  /// Epochs of one range each are pooled into rounds of one range per anchor first.
   /// 0: never suspend.
   int nlos_suspend = 2;
+  /// sigma=auto: the range likelihood becomes the LOS / NLOS mixture learnt at the start, when
+  /// it explains the residuals better than one Gaussian (range_mixture.hpp).
+  bool mixture = true;
 
   template <class V>
   void visit(V&& v) {
@@ -136,6 +140,10 @@ struct UwbPartParams {
     v("nlos_suspend", nlos_suspend,
       "suspend the NLOS test after this many epochs in a row in which most ranges (>= 2) fail "
       "it (0: never)");
+    v("mixture", mixture,
+      "sigma=auto: take the LOS / NLOS range-error mixture (Gaussian + exponential excess) "
+      "learnt at the start as the range likelihood, when it explains the residuals better than "
+      "one Gaussian (BIC); the NLOS test then flags only ranges that neither part explains");
   }
 };
 
@@ -257,7 +265,7 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
   double addLogLikelihood(double l, double x, double y, double theta) const override;
   void endEpoch(const PoseEstimate&) override { epoch_.clear(); }
-  void reset() override { nlos_streak_ = 0; }
+  void reset() override { nlos_streak_ = group_ranges_ = group_flagged_ = 0; }
   std::optional<std::pair<std::string, double>> calibration() const override;
   void calibrate(const EstimatorStatistics& learnt, EstimatorStatistics& stats) override;
 
@@ -275,8 +283,11 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   std::vector<AcceptedRange> epoch_;
   std::vector<AcceptedRange> used_;  ///< the clean ones (bias removed), for the swarm's fitness
   RangeNoiseModel noise_;
-  int epoch_flagged_ = 0;  ///< ranges of the open epoch that failed the NLOS test
-  int nlos_streak_ = 0;    ///< epochs in a row in which most ranges failed it
+  int round_;                            ///< ranges in a round: one per anchor (at least 2)
+  int group_ranges_ = 0;                 ///< ranges of the open group (nlos_suspend)
+  int group_flagged_ = 0;                ///< of them, those that failed the NLOS test
+  int nlos_streak_ = 0;                  ///< groups in a row in which most ranges failed it
+  std::optional<RangeMixture> mixture_;  ///< the learnt range likelihood, when in force
 };
 
 /// Bayes weights, then resampling by the filter's strategy when ESS / N falls below its

@@ -1,0 +1,50 @@
+// The range error as a mixture: a Gaussian line-of-sight part and a non-line-of-sight part in
+// which the range reads long by an exponential excess (an exponentially modified Gaussian),
+//   p(e) = (1 - w) N(e; 0, s) + w EMG(e; s, m),
+//   EMG(e; s, m) = (1 / m) exp(s^2 / (2 m^2) - e / m) Phi(e / s - s / m),
+// e the range minus the predicted distance, w the NLOS fraction, s the noise std and m the mean
+// NLOS excess. Where most ranges are NLOS (a robot among walls), a Gaussian of any width takes
+// the excess for noise about a longer distance and pulls the estimate away from the anchors; the
+// mixture explains it and the shortest ranges place the robot. It is learnt from the residuals
+// of a solved path (fitRangeMixture) and kept only when it explains them better than one
+// Gaussian by more than its extra parameters cost (BIC).
+#pragma once
+
+#include <map>
+#include <optional>
+#include <utility>
+#include <vector>
+
+namespace uwbloc::loc {
+
+struct RangeMixture {
+  double nlos_fraction = 0.0;  ///< w, in (0, 1)
+  double sigma = 0.1;          ///< s [m]
+  double nlos_mean = 0.5;      ///< m, the mean NLOS excess [m]
+
+  /// log p(e) with the LOS std widened to `sigma_eff` (>= sigma: the state's own uncertainty,
+  /// or an NLOS model's doubt): both parts take it.
+  double logDensity(double e, double sigma_eff) const;
+  double logDensity(double e) const { return logDensity(e, sigma); }
+};
+
+/// The mixture's fit to range residuals after a solve, each with its anchor id: maximum
+/// likelihood (Ceres) over w, s, m and one offset (where the LOS residuals lie: the solved
+/// path's own pull), from at most 20 000 residuals (a longer run's thinned evenly). Nothing when:
+/// - there are fewer than 100 residuals, or the fit fails;
+/// - the mixture's log-likelihood exceeds one Gaussian's (mean and std) by less than the BIC
+///   price of its two extra parameters (ln n), or falls below that of a Gaussian with a mean per
+///   anchor: a bias shifts every range of one anchor, and biases explain it better (one anchor
+///   of three 1 m long is not NLOS);
+/// - w < 0.05, or m <= s (a skew of the noise, not a second mode).
+struct RangeMixtureFit {
+  RangeMixture mixture;
+  double offset = 0.0;                          ///< where the LOS residuals lie [m]
+  double log_likelihood = 0.0;                  ///< per residual
+  double gaussian_log_likelihood = 0.0;         ///< one mean and std, per residual
+  double biased_gaussian_log_likelihood = 0.0;  ///< a mean per anchor and one std
+};
+std::optional<RangeMixtureFit> fitRangeMixture(
+    const std::vector<std::pair<int, double>>& residuals);
+
+}  // namespace uwbloc::loc

@@ -1,0 +1,160 @@
+#include "uwbloc/localization/range_mixture.hpp"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace uwbloc::loc {
+
+namespace {
+
+constexpr double kMinResiduals = 100;
+constexpr size_t kMaxResiduals = 20000;
+constexpr double kMinNlosFraction = 0.05;
+/// The LOS part keeps at least 1 %: the NLOS test measures a range against it.
+constexpr double kMaxNlosFraction = 0.99;
+
+/// log of (1 - w) N(e; 0, s) + w EMG(e; s, m), for doubles and Jets. The EMG's log is taken as
+/// log(1/m) + s^2/(2 m^2) - e/m + log Phi(e/s - s/m); far in Phi's lower tail (a range much
+/// shorter than the distance) erfc underflows, and the LOS part carries the density there.
+template <class T>
+T mixtureLogDensity(const T& e, const T& w, const T& s, const T& m) {
+  using std::erfc;
+  using std::exp;
+  using std::log;
+  using std::sqrt;
+  const T z = e / s;
+  const T log_los = log(T(1) - w) - T(0.5) * z * z - log(s) - T(0.5 * std::log(2.0 * M_PI));
+  const T arg = -(z - s / m) / T(M_SQRT2);
+  const T phi = T(0.5) * erfc(arg);
+  if (!(phi > T(1e-300))) return log_los;
+  const T log_nlos = log(w) - log(m) + s * s / (T(2) * m * m) - e / m + log(phi);
+  const T hi = log_los > log_nlos ? log_los : log_nlos;
+  const T lo = log_los > log_nlos ? log_nlos : log_los;
+  return hi + log(T(1) + exp(lo - hi));
+}
+
+/// One residual's negative log-likelihood under the mixture; the parameters are unconstrained:
+/// offset, log s, logit w, log m.
+struct MixtureCost {
+  explicit MixtureCost(double e) : e_(e) {}
+  template <class T>
+  bool operator()(const T* offset, const T* log_s, const T* logit_w, const T* log_m,
+                  T* residual) const {
+    using std::exp;
+    using std::sqrt;
+    const T w = T(1) / (T(1) + exp(-logit_w[0]));
+    const T nll = -mixtureLogDensity(T(e_) - offset[0], w, exp(log_s[0]), exp(log_m[0]));
+    // Ceres minimises half the squared residuals: the residual is the root of 2 (nll + a
+    // constant that keeps it positive).
+    residual[0] = sqrt(T(2) * (nll + T(kShift)));
+    return true;
+  }
+  static constexpr double kShift = 50.0;
+  double e_;
+};
+
+struct Solved {
+  RangeMixture mixture;
+  double offset = 0.0;
+  double ll = 0.0;  ///< summed
+};
+
+/// The maximum-likelihood fit from one start: the LOS part at quantile `q` of the (sorted)
+/// residuals, s from the spread below it, a share `w` NLOS with the excess of the mean over it.
+std::optional<Solved> solveFrom(const std::vector<double>& sorted, double q, double w) {
+  const auto at = [&](double f) { return sorted[static_cast<size_t>(f * (sorted.size() - 1))]; };
+  const double mean =
+      std::accumulate(sorted.begin(), sorted.end(), 0.0) / static_cast<double>(sorted.size());
+  double offset = at(q), log_s = std::log(std::max((at(q) - at(0.5 * q)) / 0.67, 1e-3)),
+         logit_w = std::log(w / (1.0 - w)), log_m = std::log(std::max(mean - at(q), 0.05));
+  ceres::Problem problem;
+  for (double r : sorted)
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<MixtureCost, 1, 1, 1, 1, 1>(new MixtureCost(r)), nullptr,
+        &offset, &log_s, &logit_w, &log_m);
+  problem.SetParameterLowerBound(&log_s, 0, std::log(1e-3));
+  problem.SetParameterUpperBound(&log_s, 0, std::log(100.0));
+  problem.SetParameterLowerBound(&log_m, 0, std::log(1e-3));
+  problem.SetParameterUpperBound(&log_m, 0, std::log(100.0));
+  problem.SetParameterLowerBound(&logit_w, 0, -10.0);
+  problem.SetParameterUpperBound(&logit_w, 0,
+                                 std::log(kMaxNlosFraction / (1.0 - kMaxNlosFraction)));
+  ceres::Solver::Options options;
+  options.max_num_iterations = 100;
+  options.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  if (!summary.IsSolutionUsable()) return std::nullopt;
+  Solved out;
+  out.mixture.sigma = std::exp(log_s);
+  out.mixture.nlos_fraction = 1.0 / (1.0 + std::exp(-logit_w));
+  out.mixture.nlos_mean = std::exp(log_m);
+  out.offset = offset;
+  for (double r : sorted) out.ll += out.mixture.logDensity(r - offset);
+  if (!std::isfinite(out.ll)) return std::nullopt;
+  return out;
+}
+
+}  // namespace
+
+double RangeMixture::logDensity(double e, double sigma_eff) const {
+  return mixtureLogDensity(e, nlos_fraction, std::max(sigma_eff, 1e-6), nlos_mean);
+}
+
+std::optional<RangeMixtureFit> fitRangeMixture(
+    const std::vector<std::pair<int, double>>& residuals) {
+  // A long run's residuals are thinned evenly to kMaxResiduals (each costs a term of the fit).
+  const size_t stride = residuals.size() / kMaxResiduals + 1;
+  std::map<int, std::vector<double>> by_anchor;
+  double n = 0.0;
+  for (size_t i = 0; i < residuals.size(); i += stride)
+    if (const auto& [anchor, e] = residuals[i]; std::isfinite(e)) {
+      by_anchor[anchor].push_back(e);
+      ++n;
+    }
+  if (n < kMinResiduals) return std::nullopt;
+  // The Gaussians: one mean and std, and a mean per anchor with one std.
+  double sum = 0.0, sum_sq = 0.0, ss_anchor = 0.0;
+  for (const auto& [anchor, e] : by_anchor) {
+    const double mean = std::accumulate(e.begin(), e.end(), 0.0) / static_cast<double>(e.size());
+    for (double r : e) {
+      sum += r;
+      sum_sq += r * r;
+      ss_anchor += (r - mean) * (r - mean);
+    }
+  }
+  const double var = sum_sq / n - (sum / n) * (sum / n), var_anchor = ss_anchor / n;
+  if (!(var > 0.0) || !(var_anchor > 0.0)) return std::nullopt;
+  RangeMixtureFit fit;
+  fit.gaussian_log_likelihood = -0.5 * std::log(2.0 * M_PI * var) - 0.5;
+  fit.biased_gaussian_log_likelihood = -0.5 * std::log(2.0 * M_PI * var_anchor) - 0.5;
+  std::vector<double> sorted;
+  for (const auto& [anchor, e] : by_anchor) sorted.insert(sorted.end(), e.begin(), e.end());
+  std::sort(sorted.begin(), sorted.end());
+  // The likelihood has several optima (a few ranges far long, or most a little), so the fit
+  // starts three times and keeps the best: the LOS part at the residuals' 10th, 25th and 50th
+  // percentile, 90, 50 and 20 % of them NLOS.
+  std::optional<Solved> best;
+  for (const auto& [q, w] : {std::pair{0.10, 0.9}, std::pair{0.25, 0.5}, std::pair{0.50, 0.2}})
+    if (auto solved = solveFrom(sorted, q, w); solved && (!best || solved->ll > best->ll))
+      best = solved;
+  if (!best) return std::nullopt;
+  fit.mixture = best->mixture;
+  fit.offset = best->offset;
+  fit.log_likelihood = best->ll / n;
+  // BIC: the mixture's 4 parameters against the Gaussian's mean and std. It must also beat a
+  // Gaussian with a mean per anchor (biases explain the residuals no better), and its NLOS part
+  // must be more than a skew of the noise (m > s).
+  const bool better =
+      2.0 * n * (fit.log_likelihood - fit.gaussian_log_likelihood) > 2.0 * std::log(n) &&
+      fit.log_likelihood > fit.biased_gaussian_log_likelihood;
+  if (!better || fit.mixture.nlos_fraction < kMinNlosFraction ||
+      fit.mixture.nlos_mean <= fit.mixture.sigma)
+    return std::nullopt;
+  return fit;
+}
+
+}  // namespace uwbloc::loc
