@@ -2,7 +2,6 @@
 // demo and the simulated PF-IBAS room against the baselines (10 fixed seeds).
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <limits>
 #include <map>
 #include <string>
@@ -248,31 +247,6 @@ TEST(MrptDemo, NlosTestStepsAsideWhenThePoseIsWrong) {
   EXPECT_LT(with.metrics.rmse_2d, 0.5 * without.metrics.rmse_2d);
   EXPECT_GT(with.events.at("nlos_test_suspended"), 0);
   EXPECT_EQ(tracking.events.count("nlos_test_suspended"), 0u);
-}
-
-TEST(MrptDemo, NlosTestStepsAsideWhenRangesComeOneAtATime) {
-  // The same global start with each step's three ranges 1 ms apart: every epoch holds one range,
-  // so the rule reads rounds of one range per anchor; without them it could never trigger.
-  data::Dataset ds = demo();
-  double step_t = -1.0;
-  int k = 0;
-  for (auto& e : ds.events)
-    if (auto* r = std::get_if<uwb::Range>(&e)) {
-      k = r->t == step_t ? k + 1 : 0;
-      step_t = r->t;
-      r->t += 1e-3 * k;
-    }
-  std::stable_sort(ds.events.begin(), ds.events.end(), [](const auto& a, const auto& b) {
-    return loc::eventTime(a) < loc::eventTime(b);
-  });
-  const auto one = eval::evaluateMethod(ds, "fused-pf:init=global,init_n=10000", 3, 1);
-  const auto never =
-      eval::evaluateMethod(ds, "fused-pf:init=global,init_n=10000,nlos_suspend=0", 3, 1);
-  std::printf(
-      "[ NLOS     ] global start, ranges one at a time, 3 seeds: %.3f m (never suspended %.3f m)\n",
-      one.metrics.rmse_2d, never.metrics.rmse_2d);
-  EXPECT_GT(one.events.count("nlos_test_suspended"), 0u);
-  EXPECT_LT(one.metrics.rmse_2d, 0.5 * never.metrics.rmse_2d);
 }
 
 // The kidnapped robot on the MRPT demo: at 150 s the robot is carried to where it was 30 s

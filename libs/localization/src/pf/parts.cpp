@@ -97,8 +97,7 @@ UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
       map_(context.map),
       nlos_reason_(std::string("nlos_") + enumName(params.nlos)),
       pose_gate_(params.nlos_k * params.nlos_k),
-      noise_(params.front.sigmaValue()),
-      round_(std::max<int>(2, static_cast<int>(context.anchors.size()))) {
+      noise_(params.front.sigmaValue()) {
   if (params_.nlos == NlosTest::kRaycast && !map_)
     throw ParamError("nlos=raycast needs a map: give the manifest's [dataset] map");
 }
@@ -166,17 +165,11 @@ void UwbRangeMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stats)
   // The NLOS test uses the estimate after the motion and the epoch's other updates (LiDAR).
   pf.normalize();
   const ParticleEstimate e = pf.estimate();
+  epoch_flagged_ = 0;
   if (suspended()) ++stats.events["nlos_test_suspended"];
   for (const auto& r : epoch_) weightRange(pf, r, e, stats);
   const auto ranges = static_cast<int>(epoch_.size());
-  group_ranges_ += ranges;
-  // The streak counts groups of ranges: an epoch of two or more, or, where ranges come one at a
-  // time, consecutive epochs until they hold one range per anchor (a round). A group in which
-  // most ranges (at least 2) failed extends it.
-  if (ranges >= 2 || group_ranges_ >= round_) {
-    nlos_streak_ = group_flagged_ >= 2 && 2 * group_flagged_ > group_ranges_ ? nlos_streak_ + 1 : 0;
-    group_ranges_ = group_flagged_ = 0;
-  }
+  nlos_streak_ = epoch_flagged_ >= 2 && 2 * epoch_flagged_ > ranges ? nlos_streak_ + 1 : 0;
 }
 
 void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r,
@@ -214,7 +207,7 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   }
   const bool failed = (params_.nlos == NlosTest::kPose && dec.flag_pose) ||
                       (params_.nlos == NlosTest::kRaycast && dec.flag_raycast);
-  group_flagged_ += failed;
+  epoch_flagged_ += failed;
   const bool flagged = failed && !suspended();
   double sig = sigma;
   if (flagged) {

@@ -118,7 +118,6 @@ struct UwbPartParams {
   /// The NLOS test judges ranges against the filter's pose; when most of an epoch's ranges (at
   /// least 2) fail it this many epochs in a row, the pose is more likely wrong than the ranges,
   /// and the test is suspended (the ranges are used) until they agree with the pose again.
-  /// Epochs of one range each are pooled into rounds of one range per anchor first.
   /// 0: never suspend.
   int nlos_suspend = 2;
   /// sigma=auto: the range likelihood becomes the LOS / NLOS mixture learnt at the start, when
@@ -265,7 +264,7 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
   double addLogLikelihood(double l, double x, double y, double theta) const override;
   void endEpoch(const PoseEstimate&) override { epoch_.clear(); }
-  void reset() override { nlos_streak_ = group_ranges_ = group_flagged_ = 0; }
+  void reset() override { nlos_streak_ = 0; }
   std::optional<std::pair<std::string, double>> calibration() const override;
   void calibrate(const EstimatorStatistics& learnt, EstimatorStatistics& stats) override;
 
@@ -283,10 +282,8 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   std::vector<AcceptedRange> epoch_;
   std::vector<AcceptedRange> used_;  ///< the clean ones (bias removed), for the swarm's fitness
   RangeNoiseModel noise_;
-  int round_;                            ///< ranges in a round: one per anchor (at least 2)
-  int group_ranges_ = 0;                 ///< ranges of the open group (nlos_suspend)
-  int group_flagged_ = 0;                ///< of them, those that failed the NLOS test
-  int nlos_streak_ = 0;                  ///< groups in a row in which most ranges failed it
+  int epoch_flagged_ = 0;                ///< ranges of the open epoch that failed the NLOS test
+  int nlos_streak_ = 0;                  ///< epochs in a row in which most ranges failed it
   std::optional<RangeMixture> mixture_;  ///< the learnt range likelihood, when in force
 };
 
