@@ -104,6 +104,12 @@ double RangeMixture::logDensity(double e, double sigma_eff) const {
   return mixtureLogDensity(e, nlos_fraction, std::max(sigma_eff, 1e-6), nlos_mean);
 }
 
+bool RangeMixture::outside(double e, double sigma_eff, double k) const {
+  const double sd = std::max(sigma_eff, 1e-6);
+  return logDensity(e, sd) <
+         std::log1p(-nlos_fraction) - 0.5 * k * k - std::log(sd * std::sqrt(2.0 * M_PI));
+}
+
 std::optional<RangeMixtureFit> fitRangeMixture(
     const std::vector<std::pair<int, double>>& residuals) {
   // A long run's residuals are thinned evenly to kMaxResiduals (each costs a term of the fit).

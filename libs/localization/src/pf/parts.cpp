@@ -85,10 +85,6 @@ void LidarFieldMeasurement::addArtifacts(
 
 // ---------------------------------------------------------------- UWB ranges
 
-namespace {
-const double kSqrt2Pi = std::sqrt(2.0 * M_PI);
-}  // namespace
-
 UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
                                          const EstimatorContext& context)
     : params_(params),
@@ -192,14 +188,8 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   dec.t = r.measurement.t;
   dec.anchor_id = r.measurement.anchor_id;
   dec.range = r.measurement.range;
-  if (mixture_) {
-    const double k2 = params_.nlos_k * params_.nlos_k;
-    const double sd = std::sqrt(s);
-    dec.flag_pose = mixture_->logDensity(d - d_hat, sd) <
-                    std::log1p(-mixture_->nlos_fraction) - 0.5 * k2 - std::log(sd * kSqrt2Pi);
-  } else {
-    dec.flag_pose = !pose_gate_.accept(d - d_hat, s);
-  }
+  dec.flag_pose = mixture_ ? mixture_->outside(d - d_hat, std::sqrt(s), params_.nlos_k)
+                           : !pose_gate_.accept(d - d_hat, s);
   if (map_) {
     const Eigen::Vector3d tag_world = uwb::tagPosition(e.mean, tag);
     dec.flag_raycast =

@@ -26,6 +26,9 @@ struct RangeMixture {
   /// or an NLOS model's doubt): both parts take it.
   double logDensity(double e, double sigma_eff) const;
   double logDensity(double e) const { return logDensity(e, sigma); }
+  /// Whether neither part explains e: its density (at `sigma_eff`) falls below the LOS part's
+  /// at k sigma_eff (a range too short, or longer than the NLOS excess explains).
+  bool outside(double e, double sigma_eff, double k) const;
 };
 
 /// The mixture's fit to range residuals after a solve, each with its anchor id: maximum
