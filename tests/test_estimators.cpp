@@ -278,6 +278,33 @@ TEST(KidnappedRobot, LidarFiltersRelocaliseInTheRoom) {
   }
 }
 
+// A kidnapping in the 75 s room (carried 8 s along its path at t = 40 s; its ranges are 14 %
+// NLOS, so the mixture is in force) with the scans' test off (lost_scans=0): under the range
+// mixture learnt at the LiDAR's pose, more than half of the last 50 ranges failing the NLOS test
+// says the filter is lost, and it relocalises; with that test off too (lost_ranges=0) nothing does.
+TEST(KidnappedRobot, TheRangesAloneSayTheFusedFilterIsLost) {
+  const auto s =
+      data::loadScenario(std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/pfibas_room.ini");
+  const auto full = data::loadDataset(
+      data::writeSimulation(s, 1, (test::scratchDir() / "kidnap_room_ranges").string()), "");
+  const double t_kidnap = full.start_time + 40.0;
+  const data::Dataset ds = test::kidnap(full, t_kidnap, 8.0);
+  for (const std::string m : {"fused-pf:lost_scans=0", "pf-ibas:lost_scans=0"}) {
+    const auto run = eval::runMethod(ds, m, 1);
+    const auto recovery = test::recoveryTime(ds, run.trajectory, t_kidnap, 0.2, 5.0);
+    const auto& events = run.statistics.events;
+    std::printf("[ KIDNAP   ] room %-22s relocalised %ld time, recovered after %.1f s\n", m.c_str(),
+                events.count("relocalised") ? events.at("relocalised") : 0L,
+                recovery.value_or(-1.0));
+    EXPECT_EQ(events.count("range_mixture_at_lidar_pose"), 1u) << m;
+    EXPECT_GE(events.count("relocalised"), 1u) << m;
+    ASSERT_TRUE(recovery.has_value()) << m << " never recovered";
+    EXPECT_LT(*recovery, 30.0) << m;
+  }
+  const auto blind = eval::runMethod(ds, "fused-pf:lost_scans=0,lost_ranges=0", 1);
+  EXPECT_EQ(blind.statistics.events.count("relocalised"), 0u);
+}
+
 // The guard itself: an estimator whose update produces NaN. process() drops the estimate,
 // counts it, and resets the method.
 class NanEstimator : public loc::Estimator {

@@ -139,8 +139,9 @@ TEST(TrajectoryEval, AssociationStatisticsAndParsing) {
   std::vector<loc::PoseEstimate> est(4);
   est[0].t = 0.5, est[1].t = 1.02, est[2].t = 2.0, est[3].t = 3.5;
   // Interpolation within gaps of at most 1.5 s: 0.5 only (1.02 and 2.0 lie in the 2 s gap).
-  EXPECT_EQ(eval::associatePoses(est, ref, {true, 1.5}).size(), 1u);
-  EXPECT_EQ(eval::associatePoses(est, ref, {true, 2.5}).size(), 3u);
+  // (The reference's median step, 2 s, would make it sparse at the default threshold.)
+  EXPECT_EQ(eval::associatePoses(est, ref, {true, 1.5, 10.0}).size(), 1u);
+  EXPECT_EQ(eval::associatePoses(est, ref, {true, 2.5, 10.0}).size(), 3u);
   // Nearest within 0.05 s: only 1.02 -> 1.0.
   const auto near = eval::associatePoses(est, ref, {false, 0.05});
   ASSERT_EQ(near.size(), 1u);
@@ -161,4 +162,47 @@ TEST(TrajectoryEval, AssociationStatisticsAndParsing) {
   EXPECT_THROW(eval::parseRpeDelta("-1m"), std::invalid_argument);
   EXPECT_THROW(eval::parseRpeDelta("1km"), std::invalid_argument);
   EXPECT_THROW(eval::parseAlignment("sim3"), std::invalid_argument);
+}
+
+TEST(TrajectoryEval, ASparseReferenceIsScoredAtItsOwnStamps) {
+  // The robot drives a circle of radius 2 m at 0.5 rad/s; the reference has a pose every 2 s,
+  // the estimate is exact at 50 Hz. Interpolating the reference puts it on the chords, whose
+  // midpoints lie r (1 - cos(w T / 2)) inside the circle; scored at the reference's stamps, the
+  // exact estimate has no error (up to its own 0.02 s chords).
+  const double r = 2.0, w = 0.5, step = 2.0;
+  const auto on = [&](double t) {
+    return Eigen::Vector3d(r * std::cos(w * t), r * std::sin(w * t), 0.0);
+  };
+  std::vector<data::TimedPose> ref;
+  for (double t = 0.0; t <= 20.0 + 1e-9; t += step) ref.push_back({t, on(t)});
+  std::vector<loc::PoseEstimate> est;
+  for (int k = 0; k <= 1000; ++k) {
+    loc::PoseEstimate e;
+    e.t = 0.02 * k;
+    e.pose = on(e.t);
+    est.push_back(e);
+  }
+  const auto max_error = [](const std::vector<eval::PosePair>& pairs) {
+    double m = 0.0;
+    for (const auto& p : pairs) m = std::max(m, (p.est - p.ref).head<2>().norm());
+    return m;
+  };
+  EXPECT_DOUBLE_EQ(eval::medianStep(ref), step);
+  const auto at_stamps = eval::associatePoses(est, ref, {true, 5.0});
+  ASSERT_EQ(at_stamps.size(), ref.size());
+  for (size_t i = 0; i < ref.size(); ++i) EXPECT_DOUBLE_EQ(at_stamps[i].t, ref[i].t);
+  EXPECT_LT(max_error(at_stamps), 1e-3);
+  // The reference interpolated at the estimate's 1001 stamps (a threshold above its step).
+  const auto interpolated = eval::associatePoses(est, ref, {true, 5.0, 10.0});
+  ASSERT_EQ(interpolated.size(), est.size());
+  EXPECT_NEAR(max_error(interpolated), r * (1.0 - std::cos(w * step / 2.0)), 1e-3);
+  // A reference at 10 Hz is dense: interpolated at the estimate's stamps as before.
+  std::vector<data::TimedPose> dense;
+  for (int k = 0; k <= 200; ++k) dense.push_back({0.1 * k, on(0.1 * k)});
+  EXPECT_EQ(eval::associatePoses(est, dense, {true, 5.0}).size(), est.size());
+  // An estimate with a gap longer than max_diff is not interpolated across it.
+  std::vector<loc::PoseEstimate> gappy;
+  for (const auto& e : est)
+    if (e.t < 5.0 || e.t > 11.0) gappy.push_back(e);
+  EXPECT_EQ(eval::associatePoses(gappy, ref, {true, 5.0}).size(), ref.size() - 3);
 }

@@ -11,6 +11,7 @@
 #include "uwbloc/dataset/hanyang_import.hpp"
 #include "uwbloc/dataset/lias_import.hpp"
 #include "uwbloc/dataset/simulator.hpp"
+#include "uwbloc/evaluation/trajectory_eval.hpp"
 #include "uwbloc/localization/optim/optimizers.hpp"
 #include "uwbloc/nlos/train.hpp"
 
@@ -192,6 +193,7 @@ class EvaluateCommand : public Command {
                                            association_ = "interpolate";
   std::vector<std::string> estimates_;
   std::optional<double> max_diff_;
+  double sparse_step_ = eval::Association{}.sparse_step;
   bool plots_ = true;
 };
 

@@ -117,6 +117,11 @@ void EvaluateCommand::declare(CLI::App& parser) {
                   "farthest nearest pose (default: the manifest's gt_max_gap, else 1 s for "
                   "interpolate and 0.01 s for nearest)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--sparse-step", sparse_step_,
+                  "interpolate: a reference whose median step exceeds this is not interpolated; "
+                  "the estimates are, at its stamps [s] (as compare)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--data-dir", data_dir_, "folder of public datasets (for a manifest reference)");
   cmd->add_flag("--plots,!--no-plots", plots_, "write plots/ (default: on)");
 }
@@ -148,7 +153,8 @@ int EvaluateCommand::run() {
     ds.manifest.gt_max_gap = *max_diff_;
   else if (manifest && association_ == "nearest")
     ds.manifest.gt_max_gap = 0.01;
-  const eval::Association assoc{association_ == "interpolate", ds.manifest.gt_max_gap};
+  const eval::Association assoc{association_ == "interpolate", ds.manifest.gt_max_gap,
+                                sparse_step_};
 
   std::vector<eval::MethodSummary> summaries;
   nlohmann::json ape = nlohmann::json::object();

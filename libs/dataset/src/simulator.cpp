@@ -287,16 +287,80 @@ Simulation simulate(const Scenario& s, uint64_t seed) {
   return sim;
 }
 
+/// The recording's odometry integrated from the first increment: the pose at each increment's
+/// time, in the odometry's own frame.
+class OdometryTrack {
+ public:
+  explicit OdometryTrack(const std::vector<loc::Event>& events) {
+    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+    for (const auto& e : events) {
+      const auto* inc = std::get_if<loc::OdometryIncrement>(&e);
+      if (!inc || !inc->delta.allFinite()) continue;
+      if (t_.empty()) {  // the first increment's motion began at an unknown time
+        t_.push_back(inc->t);
+        poses_.push_back(pose);
+        continue;
+      }
+      if (inc->t < t_.back()) continue;
+      pose = loc::composePose(pose, inc->delta);
+      t_.push_back(inc->t);
+      poses_.push_back(pose);
+    }
+  }
+  /// The pose at time t, linear between the increments' times; nothing outside them.
+  std::optional<Eigen::Vector3d> at(double t) const {
+    if (t_.size() < 2 || t < t_.front() || t > t_.back()) return std::nullopt;
+    const auto k = static_cast<size_t>(std::upper_bound(t_.begin(), t_.end(), t) - t_.begin());
+    if (k >= t_.size()) return poses_.back();
+    const double span = t_[k] - t_[k - 1];
+    const double w = span > 0.0 ? (t - t_[k - 1]) / span : 1.0;
+    const Eigen::Vector3d d = loc::relativePose(poses_[k - 1], poses_[k]);
+    return loc::composePose(poses_[k - 1], Eigen::Vector3d(w * d.x(), w * d.y(), w * d.z()));
+  }
+
+ private:
+  std::vector<double> t_;
+  std::vector<Eigen::Vector3d> poses_;
+};
+
+PathBetweenPoses::PathBetweenPoses(const std::vector<loc::Event>& events)
+    : odometry_(std::make_shared<OdometryTrack>(events)) {}
+
+Eigen::Vector3d PathBetweenPoses::at(const TimedPose& a, const TimedPose& b, double t) {
+  const double w = (t - a.t) / (b.t - a.t);
+  const auto oa = odometry_->at(a.t), ob = odometry_->at(b.t), ot = odometry_->at(t);
+  if (oa && ob && ot) {
+    // The odometry's shape from a, and what it misses at b spread over the interval in time.
+    const Eigen::Vector3d end = loc::composePose(a.pose, loc::relativePose(*oa, *ob));
+    Eigen::Vector3d miss = b.pose - end;
+    miss.z() = loc::wrapAngle(miss.z());
+    const double moved = (b.pose - a.pose).head<2>().norm();
+    if (miss.head<2>().norm() <= kMaxMissXy + kMaxMissPerMetre * moved &&
+        std::abs(miss.z()) <= kMaxMissTheta) {
+      ++odometry_shaped_;
+      Eigen::Vector3d pose = loc::composePose(a.pose, loc::relativePose(*oa, *ot)) + w * miss;
+      pose.z() = loc::wrapAngle(pose.z());
+      return pose;
+    }
+  }
+  ++straight_;
+  Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
+  pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
+  return pose;
+}
+
 std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
                                        const std::vector<TimedPose>& reference,
                                        const std::vector<uwb::Anchor>& anchors,
                                        const UwbSimSpec& uwb, const loc::OccupancyMap* map,
                                        uint64_t seed, std::vector<RangeTruth>* truth,
-                                       double max_gap, bool simulate_tag0) {
+                                       double max_gap, bool simulate_tag0, PathBetweenPoses* path) {
   std::vector<loc::Event> out = events;
   if (reference.size() < 2) return out;
   Rng rng(seed);
   RangeModel model(uwb, map, rng);
+  PathBetweenPoses own(events);
+  if (!path) path = &own;
   const double start = reference.front().t, end = reference.back().t;
   const auto n = static_cast<long>(std::floor((end - start) * uwb.rate));
   size_t j = 0;
@@ -311,10 +375,7 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
       const auto& b = reference[j + 1];
       // Do not invent poses across gaps in the reference.
       if (b.t - a.t > max_gap || t < a.t || t > b.t) continue;
-      const double w = (t - a.t) / (b.t - a.t);
-      Eigen::Vector3d pose = a.pose + w * (b.pose - a.pose);
-      pose.z() = loc::wrapAngle(a.pose.z() + w * loc::wrapAngle(b.pose.z() - a.pose.z()));
-      measureRobotTags(model, t, pose, anchors[i], uwb, out, truth, simulate_tag0);
+      measureRobotTags(model, t, path->at(a, b, t), anchors[i], uwb, out, truth, simulate_tag0);
     }
   }
   loc::sortByTime(out);
@@ -362,8 +423,9 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
     if (const auto* r = std::get_if<uwb::Range>(&e); r && r->tag_id == 0 && !own) own = r;
   const bool simulate_tag0 = !own || uwb.extra_tags.empty();
   std::vector<RangeTruth> truth;
+  PathBetweenPoses path(rec.events);
   const auto events = augmentWithUwb(rec.events, reference, anchors, uwb, map ? &*map : nullptr,
-                                     req.seed, &truth, req.max_gap, simulate_tag0);
+                                     req.seed, &truth, req.max_gap, simulate_tag0, &path);
 
   ensureDirectory(out_dir);
   const fs::path out(out_dir);
@@ -376,8 +438,12 @@ std::string writeAugmented(const AugmentRequest& req, const std::string& out_dir
   if (map) map->save((out / "map.gridmap.gz").string());
   ManifestDraft m;
   m.comments = {"Written by 'uwbloc augment': " + std::to_string(truth.size()) +
-                " simulated ranges (" + std::to_string(nlos) + " NLOS), seed " +
-                std::to_string(req.seed)};
+                    " simulated ranges (" + std::to_string(nlos) + " NLOS), seed " +
+                    std::to_string(req.seed),
+                "Poses between the reference's: " + std::to_string(path.odometryShaped()) +
+                    " along the recording's odometry, " + std::to_string(path.straight()) +
+                    " on a straight line (no odometry there, or odometry that misses the next "
+                    "reference pose)"};
   m.name = "augmented_" + fs::path(req.rawlog).stem().string();
   m.rawlog = "augmented.rawlog";
   m.ground_truth = "reference.txt";

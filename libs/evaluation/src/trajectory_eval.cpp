@@ -9,9 +9,48 @@
 
 namespace uwbloc::eval {
 
+double medianStep(const std::vector<data::TimedPose>& reference) {
+  if (reference.size() < 2) return 0.0;
+  std::vector<double> steps;
+  steps.reserve(reference.size() - 1);
+  for (size_t i = 1; i < reference.size(); ++i)
+    steps.push_back(reference[i].t - reference[i - 1].t);
+  const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
+  std::nth_element(steps.begin(), mid, steps.end());
+  return *mid;
+}
+
+namespace {
+// The estimates interpolated at each reference stamp that two of them, at most max_diff apart,
+// bracket (or that one of them lands on).
+std::vector<PosePair> pairAtReferenceStamps(const std::vector<loc::PoseEstimate>& estimates,
+                                            const std::vector<data::TimedPose>& reference,
+                                            double max_diff) {
+  std::vector<data::TimedPose> poses;
+  poses.reserve(estimates.size());
+  for (const auto& e : estimates) poses.push_back({e.t, e.pose});
+  const auto before = [](const data::TimedPose& p, double v) { return p.t < v; };
+  std::vector<PosePair> out;
+  for (const auto& r : reference) {
+    const auto hi = std::lower_bound(poses.begin(), poses.end(), r.t - 1e-6, before);
+    auto est = data::interpolateGroundTruth(poses, r.t, max_diff);
+    if (hi != poses.end() && std::abs(hi->t - r.t) <= 1e-6) est = hi->pose;
+    if (!est) continue;
+    const auto k = static_cast<size_t>(hi - poses.begin());
+    const bool heading =
+        k < estimates.size() && estimates[k].heading_valid &&
+        (k == 0 || std::abs(hi->t - r.t) <= 1e-6 || estimates[k - 1].heading_valid);
+    out.push_back({r.t, r.pose, *est, heading});
+  }
+  return out;
+}
+}  // namespace
+
 std::vector<PosePair> associatePoses(const std::vector<loc::PoseEstimate>& estimates,
                                      const std::vector<data::TimedPose>& reference,
                                      const Association& association) {
+  if (association.interpolate && medianStep(reference) > association.sparse_step)
+    return pairAtReferenceStamps(estimates, reference, association.max_diff);
   std::vector<PosePair> out;
   out.reserve(estimates.size());
   for (const auto& e : estimates) {

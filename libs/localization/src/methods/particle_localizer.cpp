@@ -16,6 +16,48 @@ ParticleFilterParams filterParams(const ParticleCoreParams& p) {
   f.initial_particles = p.init_n;
   return f;
 }
+
+// The learner of a Calibration with a mixture learner: the learner takes the events of its
+// span, the mixture learner those of its own (the LearningStart lasts the longer); the
+// statistics are the learner's, with the mixture learner's range mixture (or its absence) in
+// place of its own.
+class JointLearner final : public Estimator {
+ public:
+  JointLearner(std::unique_ptr<Estimator> learner, double span,
+               std::unique_ptr<Estimator> mixture_learner)
+      : learner_(std::move(learner)), mixture_learner_(std::move(mixture_learner)), span_(span) {}
+
+ protected:
+  std::optional<PoseEstimate> doProcess(const Event& event) override {
+    const double t = eventTime(event);
+    if (!t0_) t0_ = t;
+    mixture_learner_->process(event);
+    if (t - *t0_ < span_) learner_->process(event);
+    return std::nullopt;
+  }
+  std::vector<PoseEstimate> doFinishAll() override {
+    mixture_learner_->finishAll();
+    auto out = learner_->finishAll();
+    stats_ = learner_->statistics();
+    const EstimatorStatistics& m = mixture_learner_->statistics();
+    stats_.estimated_range_mixture = m.estimated_range_mixture;
+    if (m.events.count("range_model_at_filter_pose"))
+      ++stats_.events["range_mixture_at_lidar_pose"];
+    return out;
+  }
+
+ private:
+  std::unique_ptr<Estimator> learner_, mixture_learner_;
+  double span_;
+  std::optional<double> t0_;
+};
+
+std::unique_ptr<Estimator> makeLearner(const Calibration& c, const EstimatorContext& context) {
+  auto learner = Registry::builtin().create(c.learner, context);
+  if (c.mixture_learner.empty()) return learner;
+  return std::make_unique<JointLearner>(std::move(learner), c.span,
+                                        Registry::builtin().create(c.mixture_learner, context));
+}
 }  // namespace
 
 namespace detail {
@@ -29,10 +71,10 @@ std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core
     if (!context.map)
       throw ParamError("this method needs a map: give the manifest's [dataset] map");
     measurements.push_back(std::make_unique<LidarFieldMeasurement>(*lidar, context.map));
+    if (lidar->range_model) measurements.push_back(std::make_unique<RangeModelProbe>(context));
   }
   if (uwb)
-    measurements.push_back(
-        std::make_unique<UwbRangeMeasurement>(*uwb, context));
+    measurements.push_back(std::make_unique<UwbRangeMeasurement>(*uwb, context, lidar != nullptr));
   std::unique_ptr<PosteriorStep> posterior;
   if (swarm)
     posterior = std::make_unique<SwarmStep>(*swarm);
@@ -64,7 +106,7 @@ ParticleLocalizer::ParticleLocalizer(const ParticleCoreParams& core,
   // The learning method smooths from the start pose; without one the model stays as given.
   for (const auto& m : measurements_)
     if (const auto c = m->calibration(); c && context.initial_pose)
-      start_ = LearningStart(Registry::builtin().create(c->first, context), c->second);
+      start_ = LearningStart(makeLearner(*c, context), std::max(c->span, c->mixture_span));
 }
 
 std::vector<std::pair<std::string, std::string>> ParticleLocalizer::artifacts() const {
@@ -95,6 +137,9 @@ std::optional<PoseEstimate> ParticleLocalizer::finishEpoch() {
   epoch_open_ = false;
   posterior_->beginEpoch(pf_);
   for (auto& m : measurements_) m->weight(pf_, stats_);
+  bool scan = false;
+  for (const auto& m : measurements_) scan = scan || m->hasScan();
+  posterior_->epochKind(scan);
   posterior_->apply(pf_, fitness_, epoch_t_, stats_);
   const ParticleEstimate e = pf_.estimate();
   PoseEstimate est;
@@ -129,6 +174,7 @@ void ParticleLocalizer::learnt(const EstimatorStatistics& learnt) {
 std::vector<PoseEstimate> ParticleLocalizer::doFinishAll() {
   std::vector<PoseEstimate> out = start_.finish(learnt_, step_);
   if (epoch_open_) out.push_back(*finishEpoch());
+  for (auto& m : measurements_) m->finish(stats_);
   return out;
 }
 

@@ -35,10 +35,9 @@ struct RangeMixture {
 /// likelihood (Ceres) over w, s, m and one offset (where the LOS residuals lie: the solved
 /// path's own pull), from at most 20 000 residuals (a longer run's thinned evenly). Nothing when:
 /// - there are fewer than 100 residuals, or the fit fails;
-/// - the mixture's log-likelihood exceeds one Gaussian's (mean and std) by less than the BIC
-///   price of its two extra parameters (ln n), or falls below that of a Gaussian with a mean per
-///   anchor: a bias shifts every range of one anchor, and biases explain it better (one anchor
-///   of three 1 m long is not NLOS);
+/// - the mixture's BIC (4 parameters) is not below one Gaussian's (mean and std) and below a
+///   Gaussian's with a mean per anchor and one std: a bias shifts every range of one anchor,
+///   and biases explain it better (one anchor of three 1 m long is not NLOS);
 /// - w < 0.05, or m <= s (a skew of the noise, not a second mode).
 struct RangeMixtureFit {
   RangeMixture mixture;

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -74,6 +75,8 @@ struct LidarPartParams {
   double lost_fit = 0.5;
   int lost_scans = 10;
   int relocalise_n = 20000;  ///< particles spread over the map's free space when lost
+  /// Report the range model seen from the filter's pose (RangeModelProbe); weights nothing.
+  bool range_model = false;
 
   template <class V>
   void visit(V&& v) {
@@ -91,6 +94,9 @@ struct LidarPartParams {
     v("lost_scans", lost_scans,
       "... for this many scans in a row, then relocalise over the map (0: never; try 3)");
     v("relocalise_n", relocalise_n, "particles spread over the map's free space when lost");
+    v("range_model", range_model,
+      "judge the recording's ranges at the filter's pose, without using them: their std, and the "
+      "LOS / NLOS mixture when it explains them better (the fused filters' learning start)");
   }
 };
 
@@ -123,6 +129,15 @@ struct UwbPartParams {
   /// sigma=auto: the range likelihood becomes the LOS / NLOS mixture learnt at the start, when
   /// it explains the residuals better than one Gaussian (range_mixture.hpp).
   bool mixture = true;
+  /// In a filter with LiDAR and sigma=auto: the range mixture is learnt at the LiDAR's pose
+  /// (lidar-mcl with range_model=1 over the first `calib_lidar` seconds), not from the
+  /// smoothing's residuals, whose path the NLOS ranges bend; its LOS std is then taken as
+  /// fitted. 0: from the smoothing.
+  double calib_lidar = 120.0;
+  /// In a filter with LiDAR, under the mixture learnt at the LiDAR's pose: lost when more than
+  /// half of the last `lost_ranges` ranges fail the NLOS test (neither part of the mixture
+  /// explains them); the filter then relocalises over the map. 0: never.
+  int lost_ranges = 50;
 
   template <class V>
   void visit(V&& v) {
@@ -143,6 +158,13 @@ struct UwbPartParams {
       "sigma=auto: take the LOS / NLOS range-error mixture (Gaussian + exponential excess) "
       "learnt at the start as the range likelihood, when it explains the residuals better than "
       "one Gaussian (BIC); the NLOS test then flags only ranges that neither part explains");
+    v("lost_ranges", lost_ranges,
+      "with LiDAR, under the mixture learnt at its pose: lost (relocalise over the map) when "
+      "more than half of the last this many ranges fail the NLOS test (0: never)");
+    v("calib_lidar", calib_lidar,
+      "with LiDAR and sigma=auto: learn the range mixture at the LiDAR's pose "
+      "(lidar-mcl:range_model=1) over the first this many seconds, not from the smoothing's "
+      "residuals, and take its LOS std as fitted [s]; 0: from the smoothing");
   }
 };
 
@@ -158,6 +180,13 @@ constexpr std::array<EnumName<SwarmWeights>, 3> enumNames(SwarmWeights) {
            {SwarmWeights::kPosterior, "posterior"}}};
 }
 
+/// The epochs in which the swarm moves the particles: those that hold a scan (the others are
+/// weighted and resampled, as in pf-sir), or every epoch.
+enum class SwarmEpochs { kScans, kAll };
+constexpr std::array<EnumName<SwarmEpochs>, 2> enumNames(SwarmEpochs) {
+  return {{{SwarmEpochs::kScans, "scans"}, {SwarmEpochs::kAll, "all"}}};
+}
+
 /// The PF-IBAS posterior step (the paper's §2.1.3 with the changes the README measures).
 struct SwarmPartParams {
   int iterations = 1;        ///< IBAS iterations per epoch (the paper: one)
@@ -166,6 +195,12 @@ struct SwarmPartParams {
   double min_spread = 0.02;  ///< inject diversity below this swarm spread [m]
   bool resample = true;      ///< after the swarm, also resample when ESS/N < ess
   SwarmWeights weights = SwarmWeights::kSequential;
+  /// The paper's epochs hold a scan and its ranges. Where ranges come between the scans, one at
+  /// a time, a swarm step per range drives the few particles onto one anchor's circle after
+  /// another (CARMEN intel with simulated UWB, ranges at 54 Hz and scans 3.4 s apart: 0.275 m
+  /// with every epoch, 0.142 m with the scans' only; the MRPT demo, whose ranges come with its
+  /// scans, is the same either way).
+  SwarmEpochs epochs = SwarmEpochs::kScans;
 
   template <class V>
   void visit(V&& v) {
@@ -177,7 +212,21 @@ struct SwarmPartParams {
     v("ibas_weights", weights,
       "weights after the swarm: fitness (eq. 28), sequential (carried weight x likelihood) or "
       "posterior (sequential x predicted-density ratio for the move)");
+    v("ibas_epochs", epochs,
+      "epochs in which the swarm moves the particles: scans (those holding a scan; the others "
+      "are weighted and resampled) or all");
   }
+};
+
+/// How a measurement model learns over the first seconds of a recording.
+struct Calibration {
+  std::string learner;  ///< the method spec run on those events (its statistics are learnt)
+  double span = 0.0;    ///< how long the batch lasts [s]
+  /// When set, a second method run on the events of the first `mixture_span` seconds (at least
+  /// `span`), whose range mixture (or its absence) replaces the learner's (the fused filters:
+  /// lidar-mcl's range probe).
+  std::string mixture_learner;
+  double mixture_span = 0.0;
 };
 
 /// One sensor's share of an epoch.
@@ -196,13 +245,17 @@ class EpochMeasurement {
   /// Forgets the state after a re-initialisation.
   virtual void reset() {}
   virtual void addArtifacts(std::vector<std::pair<std::string, std::string>>&) const {}
-  /// A model that learns from a batch over the first seconds: the method spec that learns it
-  /// (run on those events) and how long the batch lasts [s]; nothing when it learns nothing.
-  virtual std::optional<std::pair<std::string, double>> calibration() const { return {}; }
+  /// A model that learns from a batch over the first seconds (a LearningStart): what learns
+  /// it; nothing when it learns nothing.
+  virtual std::optional<Calibration> calibration() const { return {}; }
   /// Takes what that method learnt (its statistics after its finishAll()).
   virtual void calibrate(const EstimatorStatistics&, EstimatorStatistics&) {}
   /// True when this model judges the filter lost (see LidarPartParams); asked after each epoch.
   virtual bool lost() const { return false; }
+  /// The end of the stream, after the last epoch.
+  virtual void finish(EstimatorStatistics&) {}
+  /// Whether the open epoch holds a scan.
+  virtual bool hasScan() const { return false; }
 };
 
 /// Log-likelihood of the epoch's data at one pose, summed over the measurement models.
@@ -216,6 +269,8 @@ class PosteriorStep {
   virtual void beginEpoch(const ParticleFilter&) {}
   virtual void apply(ParticleFilter& pf, const EpochFitness& fitness, double t,
                      EstimatorStatistics& stats) = 0;
+  /// Called before apply(): whether the epoch holds a scan.
+  virtual void epochKind(bool /*scan*/) {}
   virtual void addArtifacts(std::vector<std::pair<std::string, std::string>>&) const {}
 };
 
@@ -230,6 +285,7 @@ class LidarFieldMeasurement final : public EpochMeasurement {
   void endEpoch(const PoseEstimate& estimate) override;
   void addArtifacts(std::vector<std::pair<std::string, std::string>>& out) const override;
   const LandmarkMap& landmarkMap() const { return landmark_map_; }
+  bool hasScan() const override { return has_scan_; }
   bool lost() const override {
     return params_.lost_scans > 0 && low_fit_streak_ >= params_.lost_scans;
   }
@@ -259,13 +315,19 @@ class UwbRangeMeasurement final : public EpochMeasurement {
  public:
   /// The context's map is needed by the ray-cast test only, and used to record its decision
   /// when present.
-  UwbRangeMeasurement(const UwbPartParams& params, const EstimatorContext& context);
+  /// `with_lidar`: the filter also weighs scans (the range model may be learnt at their pose).
+  UwbRangeMeasurement(const UwbPartParams& params, const EstimatorContext& context,
+                      bool with_lidar = false);
   bool take(const Event& event, EstimatorStatistics& stats) override;
   void weight(ParticleFilter& pf, EstimatorStatistics& stats) override;
   double addLogLikelihood(double l, double x, double y, double theta) const override;
   void endEpoch(const PoseEstimate&) override { epoch_.clear(); }
-  void reset() override { nlos_streak_ = 0; }
-  std::optional<std::pair<std::string, double>> calibration() const override;
+  void reset() override {
+    nlos_streak_ = 0;
+    recent_failed_.clear();
+  }
+  bool lost() const override;
+  std::optional<Calibration> calibration() const override;
   void calibrate(const EstimatorStatistics& learnt, EstimatorStatistics& stats) override;
 
  private:
@@ -285,6 +347,30 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   int epoch_flagged_ = 0;                ///< ranges of the open epoch that failed the NLOS test
   int nlos_streak_ = 0;                  ///< epochs in a row in which most ranges failed it
   std::optional<RangeMixture> mixture_;  ///< the learnt range likelihood, when in force
+  bool learn_at_lidar_ = false;          ///< the mixture is learnt by lidar-mcl's range probe
+  std::deque<bool> recent_failed_;       ///< the NLOS test's verdicts on the last ranges
+};
+
+/// The ranges judged at the filter's pose, without weighting it (lidar-mcl with range_model=1,
+/// the fused filters' learning start): each accepted range's residual, its measured range minus
+/// the distance predicted from the epoch's estimate. At the end the statistics carry the
+/// residuals' std (estimated_range_sigma), each anchor's mean and std (estimated_noise) and,
+/// when it explains them better than one Gaussian, the LOS / NLOS mixture fitted to them
+/// (fitRangeMixture). The LiDAR places the pose where NLOS ranges cannot pull it, so the
+/// mixture is read off a path the ranges did not bend.
+class RangeModelProbe final : public EpochMeasurement {
+ public:
+  explicit RangeModelProbe(const EstimatorContext& context);
+  bool take(const Event& event, EstimatorStatistics& stats) override;
+  void weight(ParticleFilter&, EstimatorStatistics&) override {}
+  double addLogLikelihood(double l, double, double, double) const override { return l; }
+  void endEpoch(const PoseEstimate& estimate) override;
+  void finish(EstimatorStatistics& stats) override;
+
+ private:
+  RangeFrontEnd front_;
+  std::vector<AcceptedRange> epoch_;
+  std::vector<std::pair<int, double>> residuals_;  ///< (anchor id, residual)
 };
 
 /// Bayes weights, then resampling by the filter's strategy when ESS / N falls below its
@@ -307,8 +393,10 @@ class SwarmStep final : public PosteriorStep {
   void apply(ParticleFilter& pf, const EpochFitness& fitness, double t,
              EstimatorStatistics& stats) override;
   void addArtifacts(std::vector<std::pair<std::string, std::string>>& out) const override;
+  void epochKind(bool scan) override { scan_ = scan; }
 
  private:
+  bool scan_ = true;
   /// Moves the particles; returns the planar spread of the moved swarm [m].
   double move(ParticleFilter& pf, const EpochFitness& fitness);
   /// The weights after the move (eq. 28 and the chosen variant).
