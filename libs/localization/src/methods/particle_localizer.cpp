@@ -32,7 +32,10 @@ class JointLearner final : public Estimator {
     const double t = eventTime(event);
     if (!t0_) t0_ = t;
     mixture_learner_->process(event);
-    if (t - *t0_ < span_) learner_->process(event);
+    // As a LearningStart of the learner's own span would: up to and with the first event at or
+    // past its end.
+    if (!learner_done_) learner_->process(event);
+    learner_done_ = learner_done_ || t - *t0_ >= span_;
     return std::nullopt;
   }
   std::vector<PoseEstimate> doFinishAll() override {
@@ -50,6 +53,7 @@ class JointLearner final : public Estimator {
   std::unique_ptr<Estimator> learner_, mixture_learner_;
   double span_;
   std::optional<double> t0_;
+  bool learner_done_ = false;
 };
 
 std::unique_ptr<Estimator> makeLearner(const Calibration& c, const EstimatorContext& context) {
