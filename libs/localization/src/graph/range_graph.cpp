@@ -8,20 +8,9 @@
 
 #include "cost_functions.hpp"
 #include "uwbloc/localization/graph/marginals.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 namespace uwbloc::loc::graph {
-
-namespace {
-
-// The median of `v` (the upper one of an even count; 0 when empty).
-double medianOf(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto m = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), m, v.end());
-  return *m;
-}
-
-}  // namespace
 
 RangeGraph::RangeGraph() = default;
 RangeGraph::~RangeGraph() = default;

@@ -306,14 +306,9 @@ void RangeModelProbe::finish(EstimatorStatistics& stats) {
   // anchor's gross errors would set the std (the MRPT demo's beacon 1, metres off at times:
   // `lidar-mcl:range_model=1` gives 0.135 m over the whole run, its beacons 0.081-0.247 m).
   const auto robust = [](std::vector<double> v) {
-    const auto median = [](std::vector<double>& x) {
-      const auto mid = x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2);
-      std::nth_element(x.begin(), mid, x.end());
-      return *mid;
-    };
-    const double m = median(v);
+    const double m = medianOf(v);
     for (double& e : v) e = std::abs(e - m);
-    return std::pair{m, 1.4826 * median(v)};
+    return std::pair{m, 1.4826 * medianOf(std::move(v))};
   };
   std::map<int, std::vector<double>> by_anchor;
   std::vector<double> all;

@@ -6,13 +6,14 @@
 // use it as a fixed model.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
-#include <map>
 #include <vector>
 
 #include "uwbloc/localization/estimator.hpp"
@@ -28,6 +29,14 @@ struct ScaleEvidence;  // graph/range_graph.hpp
 enum class BiasMode { kOff, kOn, kAuto };
 constexpr std::array<EnumName<BiasMode>, 3> enumNames(BiasMode) {
   return {{{BiasMode::kOff, "0"}, {BiasMode::kOn, "1"}, {BiasMode::kAuto, "auto"}}};
+}
+
+/// The median of v (the upper one for an even count; 0 when empty).
+inline double medianOf(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto m = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), m, v.end());
+  return *m;
 }
 
 /// bias=auto's test on an anchor's offsets (range minus predicted distance): a bias stands out
