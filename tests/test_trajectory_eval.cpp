@@ -206,3 +206,20 @@ TEST(TrajectoryEval, ASparseReferenceIsScoredAtItsOwnStamps) {
     if (e.t < 5.0 || e.t > 11.0) gappy.push_back(e);
   EXPECT_EQ(eval::associatePoses(gappy, ref, {true, 5.0}).size(), ref.size() - 3);
 }
+
+// The table's footer says which pairing scored the run: the reference's own stamps for a sparse
+// one, the interpolated reference for a dense one, the nearest pose when asked.
+TEST(TrajectoryEval, ThePairingIsDescribedAsItWasDone) {
+  std::vector<data::TimedPose> sparse, dense;
+  for (int k = 0; k <= 10; ++k) sparse.push_back({2.0 * k, Eigen::Vector3d::Zero()});
+  for (int k = 0; k <= 100; ++k) dense.push_back({0.1 * k, Eigen::Vector3d::Zero()});
+  const auto has = [](const std::string& text, const char* part) {
+    return text.find(part) != std::string::npos;
+  };
+  const std::string at_stamps = eval::describePairing(sparse, {true, 1.0});
+  EXPECT_TRUE(has(at_stamps, "at the reference's own stamps")) << at_stamps;
+  EXPECT_TRUE(has(at_stamps, "2.00 s")) << at_stamps;
+  EXPECT_TRUE(has(eval::describePairing(dense, {true, 1.0}), "interpolated at each estimate"));
+  EXPECT_TRUE(has(eval::describePairing(sparse, {true, 1.0, 10.0}), "interpolated at each"));
+  EXPECT_TRUE(has(eval::describePairing(sparse, {false, 0.01}), "nearest reference pose"));
+}

@@ -210,8 +210,9 @@ int EvaluateCommand::run() {
   info.dataset_manifest = reference_;
   info.plots = plots_;
   info.extra_files = {{"ape.json", ape.dump(2) + "\n"}};
+  info.association = assoc;
   eval::writeRunDirectory(out, ds, summaries, info);
-  std::cout << eval::formatTable(ds, summaries);
+  std::cout << eval::formatTable(ds, summaries, {}, assoc);
   std::cout << "Run directory: " << out << "\n";
   long scored = 0;
   for (const auto& m : summaries) scored += m.metrics.associated > 0;

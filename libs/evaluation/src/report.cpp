@@ -76,9 +76,12 @@ std::string fileLabel(const std::string& spec) {
 namespace {
 
 nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
-                           const DatasetBounds& bounds) {
+                           const DatasetBounds& bounds,
+                           const std::optional<Association>& association = std::nullopt) {
   nlohmann::json j;
   j["dataset"] = dataset.name;
+  j["pairing"] = describePairing(
+      dataset.ground_truth, association.value_or(Association{true, dataset.manifest.gt_max_gap}));
   j["duration_s"] = number(dataset.duration());
   j["events"] = dataset.events.size();
   j["ground_truth_poses"] = dataset.ground_truth.size();
@@ -369,8 +372,9 @@ std::string tableFromJson(const Json& j) {
           << " ranges, which carry no received and first-path power (a range_features side "
              "file gives them)\n";
   }
-  out << "Errors in metres against interpolated ground truth; cov = fraction of ground-truth "
-         "samples with an estimate within 1 s; worst = the worst seed's rmse_2d; xRT = "
+  out << "Errors in metres " << j.value("pairing", std::string("against interpolated ground truth"))
+      << "; cov = fraction of ground-truth samples with an estimate within 1 s; worst = the worst "
+         "seed's rmse_2d; xRT = "
          "real-time factor; yaw_deg = heading RMSE [deg] (- when the reference has no heading); "
          "aligned = rmse_2d after the best rigid SE(2) alignment; rpe_1m = RMSE of the relative "
          "pose error's translation over 1 m stretches of the reference path.\n";
@@ -382,8 +386,9 @@ std::string tableFromJson(const Json& j) {
 }  // namespace
 
 std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
-                        const DatasetBounds& bounds) {
-  return tableFromJson(metricsJson(dataset, methods, bounds));
+                        const DatasetBounds& bounds,
+                        const std::optional<Association>& association) {
+  return tableFromJson(metricsJson(dataset, methods, bounds, association));
 }
 
 std::string formatTableFromJson(const std::string& metrics_json) {
@@ -473,7 +478,7 @@ void writeRunFiles(const std::string& out_dir, const data::Dataset& dataset,
     for (const auto& [suffix, contents] : m.artifacts)
       data::writeFileAtomic((dir / (fileLabel(m.spec) + "_" + suffix)).string(), contents);
   }
-  Json j = metricsJson(dataset, methods, info.bounds);
+  Json j = metricsJson(dataset, methods, info.bounds, info.association);
   j["wall_time_s"] = number(info.wall_seconds);
   j["jobs"] = info.jobs;
   data::writeFileAtomic((dir / "metrics.json").string(), j.dump(2) + "\n");

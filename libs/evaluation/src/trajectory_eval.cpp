@@ -1,6 +1,7 @@
 #include "uwbloc/evaluation/trajectory_eval.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
 
@@ -18,6 +19,25 @@ double medianStep(const std::vector<data::TimedPose>& reference) {
   const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
   std::nth_element(steps.begin(), mid, steps.end());
   return *mid;
+}
+
+std::string describePairing(const std::vector<data::TimedPose>& reference,
+                            const Association& association) {
+  char buf[320];
+  if (!association.interpolate)
+    std::snprintf(buf, sizeof buf, "against the nearest reference pose, at most %g s away",
+                  association.max_diff);
+  else if (const double step = medianStep(reference); step > association.sparse_step)
+    std::snprintf(buf, sizeof buf,
+                  "at the reference's own stamps (its median step, %.2f s, exceeds %g s: each "
+                  "estimate is interpolated there, between estimates at most %g s apart)",
+                  step, association.sparse_step, association.max_diff);
+  else
+    std::snprintf(buf, sizeof buf,
+                  "against the reference interpolated at each estimate's time (between "
+                  "reference poses at most %g s apart)",
+                  association.max_diff);
+  return buf;
 }
 
 namespace {

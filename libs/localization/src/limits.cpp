@@ -63,6 +63,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"readmit", 0, 1e6, false, ""},
       {"readmit_tol", 0, 1e3, false, "[m]"},
       {"init_residual", 0, 1e3, true, "[m]"},
+      {"reinit_std", 0, 1e3, false, "[m] (0: never restart after an outage)"},
       {"window", 0, 1e4, false, "[s] (per-epoch methods) or vertices (graph)"},
       {"loss_scale", 0, 1e3, true, "[std]"},
       {"odom_xy", 0, 1e3, true, "[m]"},

@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
 
 #include "uwbloc/localization/registry.hpp"
 #include "uwbloc/uwb/range_model.hpp"
@@ -64,6 +65,17 @@ void UwbEkf::correctWithRange(const AcceptedRange& r, double y, const RangePredi
   kalman::josephUpdate<4, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance(r)));
 }
 
+double UwbEkf::predictedPositionStd(double t) const {
+  Eigen::Vector4d x = x_;
+  Eigen::Matrix4d p = p_;
+  if (t > t_)
+    kalman::predictConstantVelocity(x, p, t - t_, params_.accel_psd, params_.velocity_tau);
+  const Eigen::Matrix2d pos = p.topLeftCorner<2, 2>();
+  const double half_trace = 0.5 * pos.trace();
+  const double det = pos.determinant();
+  return std::sqrt(half_trace + std::sqrt(std::max(half_trace * half_trace - det, 0.0)));
+}
+
 PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
   return kalman::tagTrackPose(t_, x_.head<2>(), p_.topLeftCorner<2, 2>(), tag_on_robot,
                               heading_.heading());
@@ -107,6 +119,11 @@ std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
   auto accepted = acceptRange(event);
   if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
 
+  if (initialised_ && params_.reinit_std > 0.0 &&
+      predictedPositionStd(accepted->measurement.t) > params_.reinit_std) {
+    ++stats_.events["reinitialised_after_outage"];
+    reset();
+  }
   if (!initialised_) {
     if (!initialise(*accepted)) return std::nullopt;
     return output(accepted->measurement.tag_on_robot);

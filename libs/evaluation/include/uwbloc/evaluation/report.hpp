@@ -3,11 +3,13 @@
 #pragma once
 
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/evaluation/trajectory_eval.hpp"
 
 namespace uwbloc::eval {
 
@@ -33,8 +35,11 @@ std::string formatMetricsJson(const data::Dataset& dataset,
 std::string formatMetricsCsv(const data::Dataset& dataset,
                              const std::vector<MethodSummary>& methods);
 /// The comparison table printed on the console (and saved as report.txt).
+/// `association`: how the estimates were paired with the reference (default: compare's, the
+/// manifest's gt_max_gap).
 std::string formatTable(const data::Dataset& dataset, const std::vector<MethodSummary>& methods,
-                        const DatasetBounds& bounds = {});
+                        const DatasetBounds& bounds = {},
+                        const std::optional<Association>& association = std::nullopt);
 
 /// The same table, from the text of a metrics.json (for runs merged by `sweep merge`); throws
 /// nlohmann::json's exceptions on a malformed file.
@@ -58,6 +63,7 @@ struct RunInfo {
   int jobs = 1;               ///< threads it ran on
   bool plots = false;         ///< write plots/ (plots.hpp); report.html is written either way
   std::vector<std::pair<std::string, std::string>> extra_files;  ///< (name, contents)
+  std::optional<Association> association;  ///< how estimates met the reference; default compare's
 };
 
 /// Holds `<out_dir>.lock` (beside the run directory) for as long as it lives, so that a second run

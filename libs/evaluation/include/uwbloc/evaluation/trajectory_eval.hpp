@@ -33,6 +33,11 @@ struct Association {
 /// The median step between the reference's stamps [s] (0 for fewer than two).
 double medianStep(const std::vector<data::TimedPose>& reference);
 
+/// How associatePoses pairs estimates with this reference, in words, after "Errors in metres"
+/// (the footer of the run's table, and metrics.json's "pairing").
+std::string describePairing(const std::vector<data::TimedPose>& reference,
+                            const Association& association);
+
 /// One estimate with the reference at its time.
 struct PosePair {
   double t = 0.0;

@@ -9,6 +9,11 @@
 // direction unobserved (on the line through two anchors): there the state's variance, and with
 // it the gate, grows without bound, and a steady wrong range would otherwise be readmitted.
 //
+// An outage (no range for tens of seconds) lets the predicted position spread over metres. One
+// range then constrains it to a ring, and the linearised, point-based or H∞ updates pick a point
+// on the ring far from the robot. So when the predicted position's std exceeds `reinit_std`,
+// the filter restarts from the next multilateration fix (event reinitialised_after_outage).
+//
 // The range model and q are learnt at the start (calib, default 60 s): the first seconds of
 // ranges go to graph-uwb as well (LearningStart), and the filter then corrects every range by the
 // learnt scale (and biases, with calib_bias), and widens sigma and raises q to what was learnt
@@ -47,6 +52,7 @@ struct UwbEkfParams {
   int readmit = 3;             ///< consecutive in-gate ranges before a quarantined anchor is used
   double readmit_tol = 1.0;    ///< and each within max(this, 3 sigma) of the prediction [m]
   double init_residual = 0.5;  ///< largest residual norm of an initial fix [m]
+  double reinit_std = 3.0;     ///< predicted position std that restarts from a fix [m]; 0 = off
 
   template <class V>
   void visit(V&& v) {
@@ -65,6 +71,9 @@ struct UwbEkfParams {
     v("readmit", readmit, "in-gate ranges in a row before a gated anchor is used again");
     v("readmit_tol", readmit_tol, "largest |innovation| that counts towards readmission [m]");
     v("init_residual", init_residual, "largest residual norm of the initial fix [m]");
+    v("reinit_std", reinit_std,
+      "restart from a multilateration fix when an outage has grown the predicted position std "
+      "beyond this [m]; 0 = never");
   }
 };
 
@@ -119,6 +128,8 @@ class UwbEkf : public UwbEstimator {
  private:
   Eigen::Matrix<double, 1, 4> hj_;  ///< the Jacobian of the last predictRange
   bool initialise(const AcceptedRange& r);
+  /// The std along the predicted position's major axis at time t (no update).
+  double predictedPositionStd(double t) const;
   /// One event through the filter (after the learning start).
   std::optional<PoseEstimate> step(const Event& event);
   /// The learnt range model and q into the filter.
