@@ -548,9 +548,11 @@ uwb::Range rangeAt(double t, int anchor, double range) {
 // One uwb-shkf step by hand. Start at (0, 0) with P = diag(0.25, 0.25, 1, 1) (start_sigma 0.5);
 // a range of 5.5 m to the anchor at (3, 4) at the start time (no motion, Q = 0) predicts 5,
 // H = [-0.6 -0.8 0 0], e = 0.5. First statistic (d = 1): C_exp = C_win = e^2 = 0.25, beta 0,
-// fading 1, R = C - H P H^T = 0.25 - 0.25 = 0 -> the floor (sigma / 2)^2 = 0.0025. Then
-// S = 0.2525, K = P H^T / S and the tag moves by K e = (-0.297030, -0.396040). With bias=1 the
-// anchor's bias becomes d_0 e = 0.5.
+// fading 1, R = C - H P H^T = 0.25 - 0.25 = 0, kept at the model's sigma^2 = 0.01 while the
+// anchor's statistics hold fewer than n0 (10) innovations (above the floor (sigma / 2)^2). Then
+// S = 0.26, K = P H^T / S and the tag moves by K e = (-0.288462, -0.384615). With n0=1 the
+// first statistic already holds n0: R = 0 goes to the floor, 0.0025, and S = 0.2525. With
+// bias=1 the anchor's bias becomes d_0 e = 0.5.
 TEST(Shkf, OneStepByHand) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
@@ -559,15 +561,37 @@ TEST(Shkf, OneStepByHand) {
   ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
   const auto out = est->process(rangeAt(10.0, 2, 5.5));
   ASSERT_TRUE(out.has_value());
-  EXPECT_NEAR(out->pose.x(), 0.25 * -0.6 * 0.5 / 0.2525, 1e-9);
-  EXPECT_NEAR(out->pose.y(), 0.25 * -0.8 * 0.5 / 0.2525, 1e-9);
-  EXPECT_EQ(est->statistics().events.at("r_kept_positive"), 1);
-  EXPECT_NEAR(est->statistics().estimated_noise.at(2).sigma, 0.05, 1e-12);
+  EXPECT_NEAR(out->pose.x(), 0.25 * -0.6 * 0.5 / 0.26, 1e-9);
+  EXPECT_NEAR(out->pose.y(), 0.25 * -0.8 * 0.5 / 0.26, 1e-9);
+  EXPECT_EQ(est->statistics().events.at("r_kept_at_model_until_n0"), 1);
+  EXPECT_NEAR(est->statistics().estimated_noise.at(2).sigma, 0.1, 1e-12);
+  auto past_n0 = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,calib=0,n0=1", ctx);
+  past_n0->process(rangeAt(10.0, 1, 3.0));
+  const auto out1 = past_n0->process(rangeAt(10.0, 2, 5.5));
+  ASSERT_TRUE(out1.has_value());
+  EXPECT_NEAR(out1->pose.x(), 0.25 * -0.6 * 0.5 / 0.2525, 1e-9);
+  EXPECT_NEAR(out1->pose.y(), 0.25 * -0.8 * 0.5 / 0.2525, 1e-9);
+  EXPECT_EQ(past_n0->statistics().events.at("r_kept_positive"), 1);
+  EXPECT_NEAR(past_n0->statistics().estimated_noise.at(2).sigma, 0.05, 1e-12);
   // With the bias estimated, the first weight d_0 = 1 takes the whole innovation as the bias.
   auto biased = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,bias=1,calib=0", ctx);
   biased->process(rangeAt(10.0, 1, 3.0));
   biased->process(rangeAt(10.0, 2, 5.5));
   EXPECT_NEAR(biased->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
+}
+
+// Greenhouse R1 (38 s, 0.1 m noise with a 0.1 m bias): the first innovations of each anchor are
+// mostly the start's uncertainty, and R̂ = C - H P H^T read off them fell to its floor; the
+// overconfident filter then gated 612 ranges (3.93 m). Kept at the model's sigma^2 until n0
+// innovations, it scores 0.063 m.
+TEST(Shkf, KeepsTheModelsNoiseUntilItsStatisticsHoldN0Innovations) {
+  const auto ds = test::simulatedScenario("greenhouse_r1", 1);
+  const auto run = eval::runMethod(ds, "uwb-shkf", 1);
+  const auto metrics = eval::computeMetrics(eval::associate(run.trajectory, ds.ground_truth),
+                                            run.trajectory, ds.ground_truth);
+  EXPECT_GT(metrics.coverage, 0.95);
+  EXPECT_LT(metrics.rmse_2d, 0.12);
+  EXPECT_GE(run.statistics.events.count("r_kept_at_model_until_n0"), 1u);
 }
 
 // uwb-shkf takes a per-range NLOS probability: with one anchor's ranges 0.5 m long (inside the

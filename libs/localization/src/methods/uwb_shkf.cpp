@@ -69,6 +69,13 @@ bool UwbShkf::updateWithRange(const AcceptedRange& r) {
   if (lambda > 1.0) ++stats_.events["fading_inflated"];
   p_ = lambda * fpf + q;
   a.r = c - (hj * p_ * hj.transpose())(0, 0);
+  // Until the anchor's statistics hold n0 innovations, R̂ is kept at least the model's: the
+  // first innovations are mostly the start's uncertainty, and C - H P H^T from a few of them
+  // fell to the floor (greenhouse R1: an overconfident filter that gated 612 ranges, 3.93 m).
+  if (a.k + 1 < static_cast<long>(sh_.n0) && a.r < rangeVariance()) {
+    a.r = rangeVariance();
+    ++stats_.events["r_kept_at_model_until_n0"];
+  }
   const double floor = sh_.r_floor.value.value_or(0.5 * params_.front.sigmaValue());
   if (a.r < floor * floor) {
     a.r = floor * floor;

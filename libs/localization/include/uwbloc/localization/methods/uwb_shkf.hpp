@@ -16,7 +16,8 @@
 //   - the fading factor (paper eq. 28-31 in the simplified strong-tracking form of Zhou & Frank,
 //     "Strong tracking filtering of nonlinear time-varying stochastic systems", IJC 65, 1996):
 //       λ_k = max(1, (C_k - H Q H^T - R̂_k-1) / (H F P F^T H^T)),  P_k/k-1 = λ_k F P F^T + Q;
-//   - the measurement noise R̂_k = C_k - H P_k/k-1 H^T (paper eq. 27), kept at least r_floor^2.
+//   - the measurement noise R̂_k = C_k - H P_k/k-1 H^T (paper eq. 27), kept at least r_floor^2,
+//     and at least the model's sigma^2 until the anchor's statistics hold N0 innovations.
 // The fading factor is capped at `fading_max`, 1 (off) by default. Applied per range, as this
 // tightly coupled filter must, it multiplies the whole F P F^T at the range rate whenever one
 // anchor's innovation runs high (an NLOS burst that passes the gate). 2D RMSE [m] on the
