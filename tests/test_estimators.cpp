@@ -557,27 +557,27 @@ TEST(Shkf, OneStepByHand) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
   ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
-  auto est = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,calib=0", ctx);
-  ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
-  const auto out = est->process(rangeAt(10.0, 2, 5.5));
-  ASSERT_TRUE(out.has_value());
-  EXPECT_NEAR(out->pose.x(), 0.25 * -0.6 * 0.5 / 0.26, 1e-9);
-  EXPECT_NEAR(out->pose.y(), 0.25 * -0.8 * 0.5 / 0.26, 1e-9);
-  EXPECT_EQ(est->statistics().events.at("r_kept_at_model_until_n0"), 1);
-  EXPECT_NEAR(est->statistics().estimated_noise.at(2).sigma, 0.1, 1e-12);
-  auto past_n0 = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,calib=0,n0=1", ctx);
-  past_n0->process(rangeAt(10.0, 1, 3.0));
-  const auto out1 = past_n0->process(rangeAt(10.0, 2, 5.5));
-  ASSERT_TRUE(out1.has_value());
-  EXPECT_NEAR(out1->pose.x(), 0.25 * -0.6 * 0.5 / 0.2525, 1e-9);
-  EXPECT_NEAR(out1->pose.y(), 0.25 * -0.8 * 0.5 / 0.2525, 1e-9);
-  EXPECT_EQ(past_n0->statistics().events.at("r_kept_positive"), 1);
-  EXPECT_NEAR(past_n0->statistics().estimated_noise.at(2).sigma, 0.05, 1e-12);
+  // The start, then the range to anchor 2: the filter after it, and the pose it gave.
+  const auto step = [&](const std::string& spec) {
+    auto est = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,calib=0" + spec, ctx);
+    EXPECT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());
+    const auto out = est->process(rangeAt(10.0, 2, 5.5));
+    return std::make_pair(std::move(est), out.value_or(loc::PoseEstimate{}));
+  };
+  const auto check = [](const std::pair<std::unique_ptr<loc::Estimator>, loc::PoseEstimate>& run,
+                        double s, const char* event, double sigma) {
+    EXPECT_NEAR(run.second.pose.x(), 0.25 * -0.6 * 0.5 / s, 1e-9);
+    EXPECT_NEAR(run.second.pose.y(), 0.25 * -0.8 * 0.5 / s, 1e-9);
+    EXPECT_EQ(
+        run.first->statistics().events.count(event) ? run.first->statistics().events.at(event) : 0,
+        1)
+        << event;
+    EXPECT_NEAR(run.first->statistics().estimated_noise.at(2).sigma, sigma, 1e-12);
+  };
+  check(step(""), 0.26, "r_kept_at_model_until_n0", 0.1);
+  check(step(",n0=1"), 0.2525, "r_kept_positive", 0.05);
   // With the bias estimated, the first weight d_0 = 1 takes the whole innovation as the bias.
-  auto biased = loc::Registry::builtin().create("uwb-shkf:sigma=0.1,iq=0,bias=1,calib=0", ctx);
-  biased->process(rangeAt(10.0, 1, 3.0));
-  biased->process(rangeAt(10.0, 2, 5.5));
-  EXPECT_NEAR(biased->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
+  EXPECT_NEAR(step(",bias=1").first->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
 }
 
 // Greenhouse R1 (38 s, 0.1 m noise with a 0.1 m bias): the first innovations of each anchor are
