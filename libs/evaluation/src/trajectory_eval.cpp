@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "uwbloc/evaluation/metrics.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/pose2.hpp"
 
 namespace uwbloc::eval {
@@ -16,9 +17,7 @@ double medianStep(const std::vector<data::TimedPose>& reference) {
   steps.reserve(reference.size() - 1);
   for (size_t i = 1; i < reference.size(); ++i)
     steps.push_back(reference[i].t - reference[i - 1].t);
-  const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
-  std::nth_element(steps.begin(), mid, steps.end());
-  return *mid;
+  return loc::medianOf(std::move(steps));
 }
 
 std::string describePairing(const std::vector<data::TimedPose>& reference,

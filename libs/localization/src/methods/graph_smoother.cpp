@@ -317,9 +317,7 @@ std::vector<double> GraphSmoother::addRangeVertices(graph::RangeGraph& g) const 
     for (int axis = 0; axis < 2; ++axis) {
       std::vector<double> v;
       for (size_t k = lo; k < hi; ++k) v.push_back(fix_xy[k](axis));
-      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2),
-                       v.end());
-      smooth[i](axis) = v[v.size() / 2];
+      smooth[i](axis) = medianOf(std::move(v));
     }
   }
   size_t k = 0;

@@ -66,11 +66,10 @@ void UwbEkf::correctWithRange(const AcceptedRange& r, double y, const RangePredi
 }
 
 double UwbEkf::predictedPositionStd(double t) const {
-  Eigen::Vector4d x = x_;
-  Eigen::Matrix4d p = p_;
-  if (t > t_)
-    kalman::predictConstantVelocity(x, p, t - t_, params_.accel_psd, params_.velocity_tau);
-  const Eigen::Matrix2d pos = p.topLeftCorner<2, 2>();
+  // Only the covariance is predicted: F P F^T + Q.
+  Eigen::Matrix4d f, q;
+  constantVelocityModel(std::max(0.0, t - t_), params_.accel_psd, f, q, params_.velocity_tau);
+  const Eigen::Matrix2d pos = (f * p_ * f.transpose() + q).topLeftCorner<2, 2>();
   const double half_trace = 0.5 * pos.trace();
   const double det = pos.determinant();
   return std::sqrt(half_trace + std::sqrt(std::max(half_trace * half_trace - det, 0.0)));
