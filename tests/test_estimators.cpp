@@ -16,6 +16,7 @@
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/localization/methods/point_filters.hpp"
 #include "uwbloc/localization/methods/uwb_shkf.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/localization/registry.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
@@ -247,6 +248,45 @@ TEST(SyntheticLoop, ParticleFilterLearnsTheRangeModel) {
   for (size_t i = 1; i < learnt.trajectory.size(); ++i)
     ASSERT_LT(learnt.trajectory[i - 1].t, learnt.trajectory[i].t);
   EXPECT_EQ(learnt.trajectory.size(), fixed.trajectory.size());
+}
+
+// A learning start is solved once per process for identical inputs: a second method with the
+// same learner (uwb-ckf after uwb-ekf: sigma, q and bias auto) takes the first one's model and
+// ends exactly where solving its own would; a moved anchor, a changed range, another seed or
+// another learning span is solved afresh.
+TEST(LearningStart, SharedByIdenticalStartsOnly) {
+  const data::Dataset ds = test::makeSquareLoop(13, 0.2, 70.0);
+  auto reused = [](const eval::RunResult& r) {
+    return r.statistics.events.count("range_model_reused") != 0;
+  };
+  loc::setLearningCacheEnabled(false);
+  const auto own = eval::runMethod(ds, "uwb-ckf", 1);
+  EXPECT_FALSE(reused(own));
+  loc::setLearningCacheEnabled(true);
+  EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ekf", 1)));
+  const auto shared = eval::runMethod(ds, "uwb-ckf", 1);
+  EXPECT_TRUE(reused(shared));
+  EXPECT_EQ(shared.statistics.events.at("range_model_learnt"), 1);
+  ASSERT_EQ(shared.trajectory.size(), own.trajectory.size());
+  for (size_t i = 0; i < own.trajectory.size(); ++i)
+    ASSERT_EQ(shared.trajectory[i].pose, own.trajectory[i].pose) << i;
+  EXPECT_EQ(shared.statistics.estimated_range_sigma, own.statistics.estimated_range_sigma);
+  // A learner with another spec (uwb-ls has no q) is not the same start.
+  EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ls", 1)));
+  EXPECT_TRUE(reused(eval::runMethod(ds, "uwb-gn", 1)));
+  data::Dataset moved = ds;
+  moved.anchors[0].position.x() += 0.01;
+  EXPECT_FALSE(reused(eval::runMethod(moved, "uwb-ekf", 1)));
+  data::Dataset changed = ds;
+  for (auto& e : changed.events)
+    if (auto* r = std::get_if<uwb::Range>(&e)) {
+      r->range += 0.001;
+      break;
+    }
+  EXPECT_FALSE(reused(eval::runMethod(changed, "uwb-ekf", 1)));
+  EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ekf", 2)));
+  EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ekf:calib=30", 1)));
+  EXPECT_TRUE(reused(eval::runMethod(ds, "uwb-ekf:calib=30", 1)));
 }
 
 // The kidnapped robot in the simulated room (240 s, carried 8 s along its path, 2.4 m, at

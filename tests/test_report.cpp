@@ -208,8 +208,12 @@ TEST(Parallel, TwoJobsGiveTheFiguresOfOneBitForBit) {
       {"uwb-ekf", {}}, {"pf-ibas:n=150", {}}, {"uwb-pf:n=300", {}}, {"odom", {}}};
   auto strip = [](const std::string& text) {
     auto j = nlohmann::json::parse(text);
-    for (auto& m : j["methods"])
+    // The timing, and which run solved a shared learning start (here the serial runs did, for
+    // every later one in this process): the estimates are the same either way.
+    for (auto& m : j["methods"]) {
       for (const char* k : {"ms_per_step", "realtime_factor"}) m.erase(k);
+      m["events"].erase("range_model_reused");
+    }
     return j.dump(1);
   };
   const auto serial = eval::evaluateMethods(demo(), jobs, 2, 5, 1);

@@ -53,6 +53,7 @@ class RunMethodsCommand : public Command {
   std::string methods_;
   int jobs_ = 1;
   bool plots_ = true;
+  bool own_learning_ = false;
 };
 
 /// `import FORMAT SOURCE --out DIR`: a public dataset into a rawlog, a reference and a manifest.

@@ -22,6 +22,7 @@
 #include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/evaluation/report.hpp"
 #include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/localization/registry.hpp"
 
 namespace uwbloc::apps {
@@ -192,10 +193,16 @@ void RunMethodsCommand::declare(CLI::App& parser) {
     jobs_ = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     cmd->add_option("--jobs,-j", jobs_,
                     "runs (method x seed) at once, one thread each; the results are those of "
-                    "--jobs 1, bit for bit, apart from the timing fields (default: the core "
+                    "--jobs 1, bit for bit, apart from the timing fields and the event "
+                    "range_model_reused (default: the core "
                     "count). Each run holds its own copy of the estimator's memory.")
         ->capture_default_str()
         ->check(CLI::Range(1, 256));
+    cmd->add_flag("--own-learning", own_learning_,
+                  "every method solves its own learning start (the range model and q it learns "
+                  "from the first calib seconds with graph-uwb). By default methods whose start "
+                  "would be the same share one solve, and their ms/step leave it out "
+                  "(events: range_model_reused)");
   } else {
     methods_ = "uwb-ekf";
     cmd->add_option("--method,-m", methods_,
@@ -231,6 +238,7 @@ int RunMethodsCommand::run() {
   std::vector<eval::MethodJob> jobs;
   const auto wall_start = std::chrono::steady_clock::now();
   int jobs_used = jobs_;
+  loc::setLearningCacheEnabled(!own_learning_);
   for (const auto& m : runnableMethods(ds, opt, overrides, methods, all, jobs_used))
     jobs.push_back({m, overridesFor(overrides, m)});
   // The bounds (a CRLB over the reference) need no run: computed beside them.

@@ -378,6 +378,15 @@ std::string tableFromJson(const Json& j) {
          "real-time factor; yaw_deg = heading RMSE [deg] (- when the reference has no heading); "
          "aligned = rmse_2d after the best rigid SE(2) alignment; rpe_1m = RMSE of the relative "
          "pose error's translation over 1 m stretches of the reference path.\n";
+  // A shared learning start is solved once: the time is in the first method's ms/step only.
+  std::string reused;
+  for (const auto& m : j["methods"])
+    if (m["events"].contains("range_model_reused"))
+      reused += (reused.empty() ? "" : ", ") + m["name"].get<std::string>();
+  if (!reused.empty())
+    out << "ms/step and xRT may leave out the learning start that these methods shared with "
+           "another (solved once; compare --own-learning times each its own): "
+        << reused << "\n";
   boundsAndNlosLines(out, j);
   rejectionLines(out, j["methods"]);
   return out.str();

@@ -216,8 +216,7 @@ EpochUwbEstimator::EpochUwbEstimator(const RangeFrontEndParams& params,
       calib_bias_(learning.calib_bias),
       sigma_(params.sigmaValue()),
       noise_(params.sigmaValue()) {
-  if (auto learner = makeRangeLearner(params.sigma, q, learning, context))
-    start_ = LearningStart(std::move(learner), learning.calib);
+  start_ = makeLearningStart(params.sigma, q, learning, context);
 }
 
 void EpochUwbEstimator::learn(const EstimatorStatistics& learnt) {
@@ -225,7 +224,7 @@ void EpochUwbEstimator::learn(const EstimatorStatistics& learnt) {
   noise_.report(stats_);
   if (sigma_auto_ && !estimatesOwnNoise() && learnt.estimated_range_sigma)
     sigma_ = noise_.widened(sigma_, stats_);
-  ++stats_.events["range_model_learnt"];
+  countLearnt(learnt, stats_);
 }
 
 std::optional<PoseEstimate> EpochUwbEstimator::step(const Event& event) {

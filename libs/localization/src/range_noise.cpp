@@ -1,7 +1,12 @@
 #include "uwbloc/localization/range_noise.hpp"
 
 #include <algorithm>
+#include <cstdint>
+#include <deque>
+#include <future>
+#include <mutex>
 #include <sstream>
+#include <type_traits>
 
 #include "uwbloc/localization/graph/range_graph.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -23,18 +28,101 @@ void RangeNoiseModel::learn(const std::map<int, NoiseEstimate>& noise, bool use_
   if (scale && std::isfinite(*scale) && *scale > -0.5) learnt_scale_ = scale;
 }
 
-std::unique_ptr<Estimator> makeRangeLearner(const AutoDouble& sigma, const AutoDouble* q,
-                                            const RangeLearningParams& learning,
-                                            const EstimatorContext& context) {
+namespace {
+
+// FNV-1a over the bytes of plain values: the identity of a learning start's inputs.
+class Fingerprint {
+ public:
+  template <typename T>
+  void add(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    const auto* p = reinterpret_cast<const unsigned char*>(&v);
+    for (size_t i = 0; i < sizeof(T); ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
+  }
+  template <typename T>
+  void add(const std::optional<T>& v) {
+    add(v.has_value());
+    if (v) add(*v);
+  }
+  template <typename T>
+  void add(const std::vector<T>& v) {
+    add(v.size());
+    for (const auto& x : v) add(x);
+  }
+  void add(const Eigen::Vector2d& v) { add(v.x()), add(v.y()); }
+  void add(const Eigen::Vector3d& v) { add(v.x()), add(v.y()), add(v.z()); }
+  void add(const uwb::Range& r) {
+    add(r.t), add(r.anchor_id), add(r.tag_id), add(r.on_robot), add(r.range);
+    add(r.tag_on_robot), add(r.rx_power_dbm), add(r.fp_power_dbm), add(r.nlos_probability);
+  }
+  void add(const OdometryIncrement& o) { add(o.t), add(o.delta); }
+  void add(const LaserScan& s) {
+    add(s.t), add(s.sensor_pose), add(s.sensor_height), add(s.angle_min);
+    add(s.angle_increment), add(s.max_range), add(s.ranges), add(s.valid);
+  }
+  void add(const ImuSample& m) { add(m.t), add(m.accel), add(m.gyro_z); }
+  void add(const Event& e) {
+    add(e.index());
+    std::visit([this](const auto& v) { add(v); }, e);
+  }
+  std::string hex() const {
+    std::ostringstream out;
+    out << std::hex << h_;
+    return out.str();
+  }
+
+ private:
+  uint64_t h_ = 14695981039346656037ull;
+};
+
+// The learnt models of this process, newest last: (the learner's key and its events'
+// fingerprint, its statistics, ready or still being solved by another run). A few suffice: the
+// methods of one compare share one or two.
+struct LearntModels {
+  std::mutex mutex;
+  std::deque<std::pair<std::string, std::shared_future<EstimatorStatistics>>> models;
+  bool enabled = true;
+  static constexpr size_t kKept = 8;
+};
+
+LearntModels& learntModels() {
+  static LearntModels m;
+  return m;
+}
+
+}  // namespace
+
+void setLearningCacheEnabled(bool enabled) {
+  auto& m = learntModels();
+  std::lock_guard lock(m.mutex);
+  m.enabled = enabled;
+  if (!enabled) m.models.clear();
+}
+
+void countLearnt(const EstimatorStatistics& learnt, EstimatorStatistics& stats) {
+  ++stats.events["range_model_learnt"];
+  if (learnt.events.count("range_model_reused")) ++stats.events["range_model_reused"];
+}
+
+LearningStart makeLearningStart(const AutoDouble& sigma, const AutoDouble* q,
+                                const RangeLearningParams& learning,
+                                const EstimatorContext& context) {
   const bool q_auto = q && q->isAuto();
   if (!(learning.calib > 0.0) ||
       !(sigma.isAuto() || q_auto || learning.calib_bias != BiasMode::kOff))
-    return nullptr;
+    return {};
   // The ranges alone, as the method sees them: graph-uwb over the first seconds.
   std::ostringstream spec;
   spec << "graph-uwb:sigma=" << sigma << ",bias=" << enumName(learning.calib_bias);
   if (q) spec << ",q=" << *q;
-  return Registry::builtin().create(spec.str(), context);
+  // Everything of the context that graph-uwb reads (not the map, nor the NLOS models: a spec
+  // without nlos_model never asks for one).
+  Fingerprint f;
+  for (const auto& a : context.anchors) f.add(a.id), f.add(a.position);
+  f.add(context.initial_pose), f.add(context.initial_time), f.add(context.seed);
+  f.add(context.range_sigma), f.add(context.robot_tags), f.add(learning.calib);
+  return LearningStart(Registry::builtin().create(spec.str(), context), learning.calib,
+                       spec.str() + "|" + f.hex());
 }
 
 void learnAccelPsd(const EstimatorStatistics& learnt, const AutoDouble& q, double tau,
@@ -77,7 +165,7 @@ std::optional<PoseEstimate> LearningStart::process(const Event& event, const Lea
     const double t = eventTime(event);
     if (!t0_) t0_ = t;
     kept_.push_back(event);
-    learner_->process(event);
+    if (share_key_.empty()) learner_->process(event);
     if (t - *t0_ >= span_) end(learnt, step);
   } else if (auto out = step(event)) {
     pending_.push_back(*out);
@@ -96,8 +184,47 @@ std::vector<PoseEstimate> LearningStart::finish(const Learnt& learnt, const Step
 }
 
 void LearningStart::end(const Learnt& learnt, const Step& step) {
-  learner_->finishAll();
-  learnt(learner_->statistics());
+  if (share_key_.empty()) {
+    learner_->finishAll();
+    learnt(learner_->statistics());
+  } else {
+    Fingerprint f;
+    for (const auto& e : kept_) f.add(e);
+    const std::string key = share_key_ + "|" + std::to_string(kept_.size()) + "|" + f.hex();
+    auto& m = learntModels();
+    // The first run with this key solves it; the others (at once, or later) wait for its result.
+    std::shared_future<EstimatorStatistics> reused;
+    std::promise<EstimatorStatistics> solving;
+    {
+      std::lock_guard lock(m.mutex);
+      for (const auto& [k, s] : m.models)
+        if (k == key) reused = s;
+      if (!reused.valid() && m.enabled) {
+        m.models.emplace_back(key, solving.get_future().share());
+        if (m.models.size() > LearntModels::kKept) m.models.pop_front();
+      }
+    }
+    if (reused.valid()) {
+      EstimatorStatistics s = reused.get();
+      ++s.events["range_model_reused"];
+      learnt(s);
+    } else {
+      try {
+        for (const auto& e : kept_) learner_->process(e);
+        learner_->finishAll();
+      } catch (...) {
+        // Those waiting get the error; a later run solves it again.
+        solving.set_exception(std::current_exception());
+        std::lock_guard lock(m.mutex);
+        m.models.erase(std::remove_if(m.models.begin(), m.models.end(),
+                                      [&](const auto& km) { return km.first == key; }),
+                       m.models.end());
+        throw;
+      }
+      solving.set_value(learner_->statistics());
+      learnt(learner_->statistics());
+    }
+  }
   learner_.reset();
   for (const auto& e : kept_)
     if (auto out = step(e)) pending_.push_back(*out);

@@ -17,8 +17,7 @@ UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
   if (params.start == EkfStart::kStartPose) start_pose_ = context.initial_pose;
   params_.accel_psd = params.q.value.value_or(params.accel_psd);
-  if (auto learner = makeRangeLearner(params.front.sigma, &params.q, params.learning, context))
-    start_ = LearningStart(std::move(learner), params.learning.calib);
+  start_ = makeLearningStart(params.front.sigma, &params.q, params.learning, context);
 }
 
 void UwbEkf::learn(const EstimatorStatistics& learnt) {
@@ -29,7 +28,7 @@ void UwbEkf::learn(const EstimatorStatistics& learnt) {
   if (params_.front.sigma.isAuto() && learnt.estimated_range_sigma)
     params_.front.sigma.value = noise_.widened(params_.front.sigmaValue(), stats_);
   learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
-  ++stats_.events["range_model_learnt"];
+  countLearnt(learnt, stats_);
 }
 
 void UwbEkf::reset() {

@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "uwbloc/localization/estimator.hpp"
@@ -87,12 +88,13 @@ struct RangeLearningParams {
   }
 };
 
-/// The learner of a method's learning start: graph-uwb with the method's own sigma, calib_bias
-/// and (when the method has one) q. None when `learning.calib` is 0 or nothing is left to learn
-/// (sigma fixed, calib_bias off, q fixed or absent).
-std::unique_ptr<Estimator> makeRangeLearner(const AutoDouble& sigma, const AutoDouble* q,
-                                            const RangeLearningParams& learning,
-                                            const EstimatorContext& context);
+/// Turns the sharing of learnt models off (on by default) or on again, for the whole process:
+/// with it off, every method solves its own learning start and its time includes it.
+void setLearningCacheEnabled(bool enabled);
+
+/// A method took a learnt model (`learnt`, the learner's statistics): counts range_model_learnt
+/// in `stats`, and range_model_reused when the model came from an earlier identical start.
+void countLearnt(const EstimatorStatistics& learnt, EstimatorStatistics& stats);
 
 /// The q a constant-velocity filter with velocity decay `tau` takes from a learnt one, when `q`
 /// is auto, into `accel_psd` (the q in force; stats: q_raised, estimated_accel_psd):
@@ -117,8 +119,11 @@ class LearningStart {
   using Step = std::function<std::optional<PoseEstimate>(const Event&)>;
   LearningStart() = default;
   /// No learner: every event goes straight to the filter.
-  LearningStart(std::unique_ptr<Estimator> learner, double span)
-      : learner_(std::move(learner)), span_(span) {}
+  /// `share_key` (not empty): the learner's identity (its spec and context); the learner then
+  /// takes the kept events only at the end, and not at all when a start with the same key and
+  /// the same events has been learnt in this process (its statistics are taken instead).
+  LearningStart(std::unique_ptr<Estimator> learner, double span, std::string share_key = {})
+      : learner_(std::move(learner)), span_(span), share_key_(std::move(share_key)) {}
   bool learning() const { return learner_ != nullptr; }
   /// One event: kept while learning (ending the learning when its span is over), else stepped;
   /// returns the oldest queued estimate.
@@ -130,10 +135,21 @@ class LearningStart {
   void end(const Learnt& learnt, const Step& step);
   std::unique_ptr<Estimator> learner_;
   double span_ = 0.0;
+  std::string share_key_;
   std::optional<double> t0_;
   std::vector<Event> kept_;
   std::deque<PoseEstimate> pending_;
 };
+
+/// A method's learning start: graph-uwb with the method's own sigma, calib_bias and
+/// (when the method has one) q, as its learner. None (no learner: every event goes straight to
+/// the filter) when `learning.calib` is 0 or nothing is left to learn (sigma fixed, calib_bias
+/// off, q fixed or absent). The learnt model is shared: in one process, a learning start whose
+/// learner, context and events are those of an earlier one (the other methods of a compare or a
+/// benchmark) takes that one's statistics instead of solving the same graph again.
+LearningStart makeLearningStart(const AutoDouble& sigma, const AutoDouble* q,
+                                const RangeLearningParams& learning,
+                                const EstimatorContext& context);
 
 /// A range model per anchor: the bias to subtract and the std. Until learnt (or when fixed),
 /// every anchor has no bias and the method's own std.
