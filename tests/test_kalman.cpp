@@ -116,6 +116,23 @@ TEST(SageHusa, OneAdaptiveStepByHand) {
   EXPECT_NEAR(sageHusaWeight(0.5, 0), 1.0, 1e-12);  // d_0 = 1: the first step replaces
 }
 
+// The means held at zero (uwb-akf's default on the fix): the first step is the one above but
+// for q̂ = r̂ = 0 (Q̂ = 0.86, R̂ = 2 as there). The second, z = 2 again: predict x = 1.2 (no q̂),
+// P = 0.6 + 0.86 = 1.46; e = 0.8 (no r̂), S = 3.46, x = 1.2 + 0.8 * 1.46 / 3.46.
+TEST(SageHusa, TheMeansCanBeHeldAtZero) {
+  ScalarCase c;
+  c.process.mean = false;
+  c.meas.mean = false;
+  c.step(2.0, 0.0, 0.01);
+  EXPECT_NEAR(c.x(0), 1.2, 1e-12);
+  EXPECT_EQ(c.process.q(0), 0.0);
+  EXPECT_EQ(c.meas.r(0), 0.0);
+  EXPECT_NEAR(c.process.Q(0, 0), 0.86, 1e-12);
+  EXPECT_NEAR(c.meas.R(0, 0), 2.0, 1e-12);
+  c.step(2.0, 0.0, 0.01);
+  EXPECT_NEAR(c.x(0), 1.2 + 0.8 * 1.46 / 3.46, 1e-12);
+}
+
 // The same step with the IAKF's divergence test (gamma = 1): e'e = 4 > tr(S) = 2.5, so eq. (22)
 // gives C = (4 - (0.5 + 1)) / 1 = 2.5 and eq. (21) P = 2.5 * 1 + 0.5 = 3; then S = 4, K = 0.75,
 // x = 1.5, P = 0.25^2 3 + 0.75^2 = 0.75; q̂ = 1, Q̂ = 1/6 + 2/3 (0.5625 * 4 + 0.75 - 1) = 1.5,

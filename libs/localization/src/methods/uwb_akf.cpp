@@ -14,6 +14,8 @@ void UwbAkf::start(const uwb::Fix& fix) {
   process_ = {};
   measurement_ = {};
   measurement_.R = fix.covariance;
+  process_.mean = akf_.estimatesMean(true);
+  measurement_.mean = akf_.estimatesMean(false);
 }
 
 bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
@@ -66,7 +68,10 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
   const double predicted = rangeModel(x_, r, &hj);
   auto [it, fresh] = anchors_.try_emplace(r.measurement.anchor_id);
   auto& anchor = it->second;
-  if (fresh) anchor.R(0, 0) = params_.front.sigmaValue() * params_.front.sigmaValue();
+  if (fresh) {
+    anchor.R(0, 0) = params_.front.sigmaValue() * params_.front.sigmaValue();
+    anchor.mean = akf_.estimatesMean(false);
+  }
   const double innovation = r.measurement.range - predicted;
   // uwb-ekf's gate on the innovation less the anchor's bias, against the adaptive S: a gated
   // range leaves the statistics alone (an NLOS burst would otherwise become the anchor's noise).

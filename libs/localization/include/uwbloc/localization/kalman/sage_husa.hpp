@@ -34,6 +34,7 @@ struct SageHusaProcess {
   Vec<N> q = Vec<N>::Zero();
   Mat<N, N> Q = Mat<N, N>::Identity();
   long k = 0;
+  bool mean = true;  ///< q̂ estimated (false: held at zero, Q̂ alone adapted)
 };
 
 /// The estimated measurement noise: mean r̂, covariance R̂, and the step count k of its d_k (a
@@ -43,6 +44,7 @@ struct SageHusaMeasurement {
   Vec<M> r = Vec<M>::Zero();
   Mat<M, M> R = Mat<M, M>::Identity();
   long k = 0;
+  bool mean = true;  ///< r̂ estimated (false: held at zero, R̂ alone adapted)
 };
 
 /// Eq. (24): the fading weight of step k for forgetting factor b in (0, 1).
@@ -124,13 +126,13 @@ SageHusaStep sageHusaUpdate(Vec<N>& x, Mat<N, N>& p, const SageHusaPrediction<N>
   // Eq. (16) with d_k of eq. (24).
   out.d = sageHusaWeight(b, meas.k);
   const double d = out.d;
-  meas.r = (1.0 - d) * meas.r + d * innovation;
+  if (meas.mean) meas.r = (1.0 - d) * meas.r + d * innovation;
   meas.R = (1.0 - d) * meas.R + d * (e * e.transpose() - h * p_pred * h.transpose());
   out.r_projected = projectEigenvalues<M>(meas.R, r_floor * r_floor);
   ++meas.k;
   if (process) {
     const double dq = sageHusaWeight(b, process->k);
-    process->q = (1.0 - dq) * process->q + dq * (x - pred.f * pred.x_prev);
+    if (process->mean) process->q = (1.0 - dq) * process->q + dq * (x - pred.f * pred.x_prev);
     process->Q =
         (1.0 - dq) * process->Q + dq * (k * e * e.transpose() * k.transpose() + p - pred.fpf);
     out.q_projected = projectEigenvalues<N>(process->Q, 1e-12);
