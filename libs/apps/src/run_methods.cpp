@@ -201,8 +201,8 @@ void RunMethodsCommand::declare(CLI::App& parser) {
     cmd->add_flag("--own-learning", own_learning_,
                   "every method solves its own learning start (the range model and q it learns "
                   "from the first calib seconds with graph-uwb). By default methods whose start "
-                  "would be the same share one solve, and their ms/step leave it out "
-                  "(events: range_model_reused)");
+                  "would be the same share one solve, and their ms/step may leave it out "
+                  "(event: range_model_reused)");
   } else {
     methods_ = "uwb-ekf";
     cmd->add_option("--method,-m", methods_,
