@@ -183,48 +183,53 @@ std::vector<PoseEstimate> LearningStart::finish(const Learnt& learnt, const Step
   return out;
 }
 
-void LearningStart::end(const Learnt& learnt, const Step& step) {
-  if (share_key_.empty()) {
-    learner_->finishAll();
-    learnt(learner_->statistics());
-  } else {
-    Fingerprint f;
-    for (const auto& e : kept_) f.add(e);
-    const std::string key = share_key_ + "|" + std::to_string(kept_.size()) + "|" + f.hex();
-    auto& m = learntModels();
-    // The first run with this key solves it; the others (at once, or later) wait for its result.
-    std::shared_future<EstimatorStatistics> reused;
-    std::promise<EstimatorStatistics> solving;
-    {
-      std::lock_guard lock(m.mutex);
-      for (const auto& [k, s] : m.models)
-        if (k == key) reused = s;
-      if (!reused.valid() && m.enabled) {
-        m.models.emplace_back(key, solving.get_future().share());
-        if (m.models.size() > LearntModels::kKept) m.models.pop_front();
-      }
-    }
-    if (reused.valid()) {
-      EstimatorStatistics s = reused.get();
-      ++s.events["range_model_reused"];
-      learnt(s);
-    } else {
-      try {
-        for (const auto& e : kept_) learner_->process(e);
-        learner_->finishAll();
-      } catch (...) {
-        // Those waiting get the error; a later run solves it again.
-        solving.set_exception(std::current_exception());
-        std::lock_guard lock(m.mutex);
-        m.models.erase(std::remove_if(m.models.begin(), m.models.end(),
-                                      [&](const auto& km) { return km.first == key; }),
-                       m.models.end());
-        throw;
-      }
-      solving.set_value(learner_->statistics());
-      learnt(learner_->statistics());
+EstimatorStatistics LearningStart::solve() {
+  // A shared start's learner has not seen the kept events yet.
+  if (!share_key_.empty())
+    for (const auto& e : kept_) learner_->process(e);
+  learner_->finishAll();
+  return learner_->statistics();
+}
+
+EstimatorStatistics LearningStart::sharedStatistics() {
+  Fingerprint f;
+  for (const auto& e : kept_) f.add(e);
+  const std::string key = share_key_ + "|" + std::to_string(kept_.size()) + "|" + f.hex();
+  auto& m = learntModels();
+  // The first run with this key solves it; the others (at once, or later) wait for its result.
+  std::shared_future<EstimatorStatistics> reused;
+  std::promise<EstimatorStatistics> solving;
+  {
+    std::lock_guard lock(m.mutex);
+    for (const auto& [k, s] : m.models)
+      if (k == key) reused = s;
+    if (!reused.valid() && m.enabled) {
+      m.models.emplace_back(key, solving.get_future().share());
+      if (m.models.size() > LearntModels::kKept) m.models.pop_front();
     }
   }
+  if (reused.valid()) {
+    EstimatorStatistics s = reused.get();
+    ++s.events["range_model_reused"];
+    return s;
+  }
+  try {
+    EstimatorStatistics s = solve();
+    solving.set_value(s);
+    return s;
+  } catch (...) {
+    // Those waiting get the error; a later run solves it again.
+    solving.set_exception(std::current_exception());
+    std::lock_guard lock(m.mutex);
+    m.models.erase(std::remove_if(m.models.begin(), m.models.end(),
+                                  [&](const auto& km) { return km.first == key; }),
+                   m.models.end());
+    throw;
+  }
+}
+
+void LearningStart::end(const Learnt& learnt, const Step& step) {
+  learnt(share_key_.empty() ? solve() : sharedStatistics());
   learner_.reset();
   for (const auto& e : kept_)
     if (auto out = step(e)) pending_.push_back(*out);

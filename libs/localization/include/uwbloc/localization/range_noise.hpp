@@ -133,6 +133,10 @@ class LearningStart {
 
  private:
   void end(const Learnt& learnt, const Step& step);
+  /// The learner's statistics after the kept events.
+  EstimatorStatistics solve();
+  /// The same, taken from an identical start of this process when there is one.
+  EstimatorStatistics sharedStatistics();
   std::unique_ptr<Estimator> learner_;
   double span_ = 0.0;
   std::string share_key_;
