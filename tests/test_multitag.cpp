@@ -127,8 +127,11 @@ TEST(Multitag, HeadingConvergesWithinOneSecondWithoutMotion) {
   // heading while the robot stands still.
   const auto ekf = eval::runMethod(ds, "uwb-ekf", 1);
   EXPECT_GT(ekf.statistics.rejected.at("secondary_tag"), 0);
-  for (const auto& e : ekf.trajectory)
-    if (e.t < ds.start_time + 9.5) EXPECT_FALSE(e.heading_valid) << e.t;
+  for (const auto& e : ekf.trajectory) {
+    if (e.t < ds.start_time + 9.5) {
+      EXPECT_FALSE(e.heading_valid) << e.t;
+    }
+  }
 }
 
 // Anchors moved by 0.5 m and per-anchor biases of +-0.3 m: calibration against the reference

@@ -76,6 +76,10 @@ double HeadingFromMotion::update(const Eigen::Vector2d& velocity) {
   return heading_;
 }
 
+Eigen::Vector2d tagFromRobot(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag_on_robot) {
+  return pose.head<2>() + rotation(pose.z()) * tag_on_robot.head<2>();
+}
+
 Eigen::Vector2d robotFromTag(const Eigen::Vector2d& tag, const Eigen::Vector3d& tag_on_robot,
                              double heading) {
   return tag - rotation(heading) * tag_on_robot.head<2>();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/localization/params.hpp"
 #include "uwbloc/nlos/model.hpp"
 #include "uwbloc/uwb/range_model.hpp"
@@ -212,6 +213,9 @@ EpochUwbEstimator::EpochUwbEstimator(const RangeFrontEndParams& params,
                                      const AutoDouble* q)
     : UwbEstimator(params, context, tags),
       epochs_(window),
+      continuity_(FixContinuityParams{params.iq_max_speed, params.iq_floor}),
+      initial_pose_(context.initial_pose),
+      initial_time_(context.initial_time),
       sigma_auto_(params.sigma.isAuto()),
       calib_bias_(learning.calib_bias),
       sigma_(params.sigmaValue()),
@@ -225,6 +229,9 @@ void EpochUwbEstimator::learn(const EstimatorStatistics& learnt) {
   if (sigma_auto_ && !estimatesOwnNoise() && learnt.estimated_range_sigma)
     sigma_ = noise_.widened(sigma_, stats_);
   countLearnt(learnt, stats_);
+  // The learnt path's speed, three times its RMS, where it exceeds the plausible one.
+  if (learnt.mean_square_speed)
+    continuity_.raiseMaxSpeed(3.0 * std::sqrt(*learnt.mean_square_speed));
 }
 
 std::optional<PoseEstimate> EpochUwbEstimator::step(const Event& event) {
@@ -243,6 +250,34 @@ std::vector<PoseEstimate> EpochUwbEstimator::doFinishAll() {
   if (auto epoch = epochs_.flush())
     if (auto last = onEpoch(*epoch)) out.push_back(*last);
   return out;
+}
+
+std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver,
+                                                    const std::vector<AcceptedRange>& epoch,
+                                                    const std::vector<uwb::PlanarRange>& planar,
+                                                    bool continuity) {
+  const uwb::Fix fix = multilaterate(solver, planar);
+  if (!fix.ok()) {
+    countRejection(std::string("epoch_") + uwb::toString(fix.status));
+    return std::nullopt;
+  }
+  if (!continuity) return fix;
+  if (!continuity_seeded_ && initial_pose_)
+    continuity_.seed(initial_time_,
+                     tagFromRobot(*initial_pose_, epoch.front().measurement.tag_on_robot));
+  continuity_seeded_ = true;
+  auto checked = continuity_.check(epochTime(epoch), fix, planar, [&](const auto& subset) {
+    return multilaterate(solver, subset);
+  });
+  if (checked.outcome == Continuity::kUnreachable) {
+    countRejection(toString(checked.outcome));
+  } else if (checked.outcome != Continuity::kAsIs) {
+    ++stats_.events[toString(checked.outcome)];
+    for (int i : checked.left_out)
+      countRejection("fix_continuity_left_out",
+                     epoch[static_cast<size_t>(i)].measurement.anchor_id);
+  }
+  return checked.fix;
 }
 
 uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::PlanarRange>& ranges) {

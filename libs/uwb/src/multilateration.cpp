@@ -209,6 +209,20 @@ Fix solveChan(const std::vector<PlanarRange>& ranges) {
   return finish(ranges, p + origin, 2);
 }
 
+std::vector<Eigen::Vector2d> circleIntersections(const PlanarRange& a, const PlanarRange& b) {
+  const Eigen::Vector2d d12 = b.anchor - a.anchor;
+  const double dist = d12.norm();
+  if (!(dist > 1e-6)) return {};
+  const Eigen::Vector2d ex = d12 / dist;
+  const Eigen::Vector2d ey(-ex.y(), ex.x());
+  // Along the centre line: x = (r1^2 - r2^2 + D^2) / 2D; across it: y = +-sqrt(r1^2 - x^2).
+  const double x = (a.range * a.range - b.range * b.range + dist * dist) / (2.0 * dist);
+  const double y2 = a.range * a.range - x * x;
+  if (!(y2 > 0.0)) return {a.anchor + x * ex};
+  const double y = std::sqrt(y2);
+  return {a.anchor + x * ex + y * ey, a.anchor + x * ex - y * ey};
+}
+
 Fix solveThreeAnchors(const std::vector<PlanarRange>& ranges) {
   if (ranges.size() != 3) {
     Fix fix;
@@ -220,19 +234,15 @@ Fix solveThreeAnchors(const std::vector<PlanarRange>& ranges) {
     return fix;
   }
   if (auto bad = precheck(ranges)) return *bad;
-  const auto& c1 = ranges[0];
-  const auto& c2 = ranges[1];
+  const auto points = circleIntersections(ranges[0], ranges[1]);
+  if (points.empty()) {
+    Fix fix;
+    fix.status = FixStatus::kDegenerate;
+    return fix;
+  }
   const auto& c3 = ranges[2];
-  const Eigen::Vector2d d12 = c2.anchor - c1.anchor;
-  const double dist = d12.norm();
-  const Eigen::Vector2d ex = d12 / dist;
-  const Eigen::Vector2d ey(-ex.y(), ex.x());
-  // Along the centre line: x = (r1^2 - r2^2 + D^2) / 2D; across it: y = +-sqrt(r1^2 - x^2).
-  const double x = (c1.range * c1.range - c2.range * c2.range + dist * dist) / (2.0 * dist);
-  const double y2 = c1.range * c1.range - x * x;
-  const double y = y2 > 0.0 ? std::sqrt(y2) : 0.0;
-  const Eigen::Vector2d pa = c1.anchor + x * ex + y * ey;
-  const Eigen::Vector2d pb = c1.anchor + x * ex - y * ey;
+  const Eigen::Vector2d& pa = points.front();
+  const Eigen::Vector2d& pb = points.back();
   const double ea = std::abs((pa - c3.anchor).norm() - c3.range);
   const double eb = std::abs((pb - c3.anchor).norm() - c3.range);
   return finish(ranges, ea <= eb ? pa : pb, 1);

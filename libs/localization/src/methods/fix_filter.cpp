@@ -5,11 +5,9 @@
 namespace uwbloc::loc {
 
 std::optional<PoseEstimate> FixFilter::onEpoch(const std::vector<AcceptedRange>& epoch) {
-  const uwb::Fix fix = multilaterate(fix_.solver, toPlanar(epoch, rangeSigma()));
-  if (!fix.ok()) {
-    countRejection(std::string("epoch_") + uwb::toString(fix.status));
-    return std::nullopt;
-  }
+  const auto checked = epochFix(fix_.solver, epoch, toPlanar(epoch, rangeSigma()), fix_.continuity);
+  if (!checked) return std::nullopt;
+  const uwb::Fix& fix = *checked;
   const double t = epochTime(epoch);
   const bool consistent = fix.residual_norm <= fix_.init_residual;
   auto initialise = [&] {

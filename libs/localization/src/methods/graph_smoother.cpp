@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/localization/fix_continuity.hpp"
 #include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/lidar/landmarks.hpp"
 #include "uwbloc/localization/motion_models.hpp"
@@ -286,18 +287,29 @@ std::vector<double> GraphSmoother::addRangeVertices(graph::RangeGraph& g) const 
     if (times.empty() || r.measurement.t - times.back() > kSameVertex)
       times.push_back(r.measurement.t);
   if (times.empty()) return times;
-  // Where the vertices start: the per-epoch Gauss-Newton fixes, each replaced by the median of
-  // it and its four neighbours per axis (a mirror fix among three anchors is an outlier),
-  // interpolated in time; before the first and after the last, the nearest.
+  // Where the vertices start: the per-epoch Gauss-Newton fixes, checked for continuity from the
+  // start pose (fix_continuity.hpp: a fix the tag cannot have reached is replaced by the
+  // reachable position that most ranges fit), each replaced by the median of it and its four
+  // neighbours per axis, interpolated in time; before the first and after the last, the nearest.
   std::vector<double> fix_t;
   std::vector<Eigen::Vector2d> fix_xy;
   EpochBuffer epochs(AutoDouble{});
+  FixContinuity continuity({params_.front.iq_max_speed, params_.front.iq_floor});
+  if (context_.initial_pose && !ranges_.empty())
+    continuity.seed(context_.initial_time,
+                    tagFromRobot(*context_.initial_pose, ranges_.front().measurement.tag_on_robot));
+  auto gaussNewton = [](const std::vector<uwb::PlanarRange>& planar) {
+    return uwb::solveGaussNewton(planar);
+  };
   auto addFix = [&](const std::optional<std::vector<AcceptedRange>>& epoch) {
     if (!epoch) return;
-    const uwb::Fix f = uwb::solveGaussNewton(toPlanar(*epoch, params_.front.sigmaValue()));
-    if (f.ok() && f.position.allFinite()) {
+    const auto planar = toPlanar(*epoch, params_.front.sigmaValue());
+    const uwb::Fix f = uwb::solveGaussNewton(planar);
+    if (!f.ok() || !f.position.allFinite()) return;
+    const auto checked = continuity.check(epochTime(*epoch), f, planar, gaussNewton);
+    if (checked.fix) {
       fix_t.push_back(epochTime(*epoch));
-      fix_xy.push_back(f.position);
+      fix_xy.push_back(checked.fix->position);
     }
   };
   for (const auto& r : ranges_) addFix(epochs.add(r));

@@ -16,12 +16,9 @@ MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
 
 std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
-  const auto planar = toPlanar(epoch, rangeSigma());
-  const uwb::Fix fix = multilaterate(solver_, planar);
-  if (!fix.ok()) {
-    countRejection(std::string("epoch_") + uwb::toString(fix.status));
-    return std::nullopt;
-  }
+  const auto checked = epochFix(solver_, epoch, toPlanar(epoch, rangeSigma()), params_.continuity);
+  if (!checked) return std::nullopt;
+  const uwb::Fix& fix = *checked;
   const double t = epochTime(epoch);
   if (last_tag_ && t > last_t_) heading_.update((fix.position - *last_tag_) / (t - last_t_));
   last_tag_ = fix.position;

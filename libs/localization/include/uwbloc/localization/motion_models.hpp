@@ -54,6 +54,9 @@ class HeadingFromMotion {
   bool valid_ = false;
 };
 
+/// The tag's position on a robot at `pose` (x, y, heading): the lever arm rotated and added.
+Eigen::Vector2d tagFromRobot(const Eigen::Vector3d& pose, const Eigen::Vector3d& tag_on_robot);
+
 /// Robot position from the tag position, removing the lever arm rotated by `heading`.
 Eigen::Vector2d robotFromTag(const Eigen::Vector2d& tag, const Eigen::Vector3d& tag_on_robot,
                              double heading);

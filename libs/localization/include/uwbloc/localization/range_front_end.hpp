@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/fix_continuity.hpp"
 #include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/multilateration.hpp"
@@ -184,6 +185,14 @@ class UwbEstimator : public Estimator {
   RangeFrontEnd front_;
 };
 
+/// The per-epoch multilateration solvers.
+enum class MultilaterationSolver { kLinearLS, kGaussNewton, kChan };
+constexpr std::array<EnumName<MultilaterationSolver>, 3> enumNames(MultilaterationSolver) {
+  return {{{MultilaterationSolver::kLinearLS, "ls"},
+           {MultilaterationSolver::kGaussNewton, "gn"},
+           {MultilaterationSolver::kChan, "chan"}}};
+}
+
 /// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds
 /// after its first range, or a second range of an anchor-tag link already in it.
 ///
@@ -242,12 +251,22 @@ class EpochUwbEstimator : public UwbEstimator {
   /// A method that estimates its noise itself (Sage-Husa) takes only the learnt range
   /// correction, and keeps its own std (and q) to start its estimates from.
   virtual bool estimatesOwnNoise() const { return false; }
+  /// The epoch's fix by `solver` from `planar` (toPlanar of the epoch); with `continuity`, checked
+  /// against the tag's reach since the last fix, from the start pose's tag (fix_continuity.hpp).
+  /// Nothing when the solver fails or the check refuses the epoch; each is counted.
+  std::optional<uwb::Fix> epochFix(MultilaterationSolver solver,
+                                   const std::vector<AcceptedRange>& epoch,
+                                   const std::vector<uwb::PlanarRange>& planar, bool continuity);
 
  private:
   /// One event after the learning start.
   std::optional<PoseEstimate> step(const Event& event);
 
   EpochBuffer epochs_;
+  FixContinuity continuity_;
+  bool continuity_seeded_ = false;
+  std::optional<Eigen::Vector3d> initial_pose_;
+  double initial_time_ = 0.0;
   bool sigma_auto_;
   BiasMode calib_bias_;
   double sigma_;
@@ -256,14 +275,6 @@ class EpochUwbEstimator : public UwbEstimator {
   LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learn(s); };
   LearningStart::Step step_ = [this](const Event& e) { return step(e); };
 };
-
-/// The per-epoch multilateration solvers.
-enum class MultilaterationSolver { kLinearLS, kGaussNewton, kChan };
-constexpr std::array<EnumName<MultilaterationSolver>, 3> enumNames(MultilaterationSolver) {
-  return {{{MultilaterationSolver::kLinearLS, "ls"},
-           {MultilaterationSolver::kGaussNewton, "gn"},
-           {MultilaterationSolver::kChan, "chan"}}};
-}
 
 /// One fix from an epoch's planar ranges with the chosen solver.
 uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::PlanarRange>& ranges);

@@ -59,6 +59,11 @@ Fix solveChan(const std::vector<PlanarRange>& ranges);
 /// circles apart, the point on the line between their centres is used.
 Fix solveThreeAnchors(const std::vector<PlanarRange>& ranges);
 
+/// Where the circles of two planar ranges meet: two points; one, on the line between the
+/// anchors, when noise keeps the circles apart (or one inside the other); none when the
+/// anchors coincide.
+std::vector<Eigen::Vector2d> circleIntersections(const PlanarRange& a, const PlanarRange& b);
+
 /// Static Cramér–Rao bound of a 2D position: sigma^2 (H^T H)^-1 with unit-vector rows H (equal
 /// sigma), or (H^T W H)^-1 with W = diag(1/sigma_i^2). Returns nothing when singular.
 std::optional<Eigen::Matrix2d> crlb2d(const std::vector<PlanarRange>& ranges,

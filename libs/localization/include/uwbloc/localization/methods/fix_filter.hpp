@@ -20,6 +20,7 @@ struct FixFilterParams {
   double gate = 13.8;          ///< chi-square gate on the 2D innovation (99.9 %, 2 dof)
   int max_gated = 5;           ///< consecutive gated fixes before re-initialising
   double init_residual = 0.5;  ///< largest residual norm of a fix used to (re)initialise [m]
+  bool continuity = true;      ///< check each fix against the tag's reach (fix_continuity.hpp)
   RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
 
   template <class V>
@@ -31,6 +32,10 @@ struct FixFilterParams {
     v("gate", gate, "chi-square gate on the position innovation (2 dof)");
     v("max_gated", max_gated, "consecutive gated fixes before re-initialising");
     v("init_residual", init_residual, "largest residual norm of an initialising fix [m]");
+    v("continuity", continuity,
+      "a fix the tag cannot have reached since the last (iq_vmax, iq_floor) is replaced by the "
+      "reachable position that the most of the epoch's ranges fit, leaving the others out (a "
+      "wrong range among three can fit the mirror image exactly); 0: every fix as it is");
     learning.visit(v);
   }
 };

@@ -12,6 +12,7 @@ namespace uwbloc::loc {
 struct MultilaterationParams {
   RangeFrontEndParams front;  ///< range checks and gates
   AutoDouble epoch_window;    ///< ranges within this span form one epoch [s]; auto: the data's rate
+  bool continuity = true;     ///< check each fix against the tag's reach (fix_continuity.hpp)
   RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
 
   template <class V>
@@ -19,6 +20,10 @@ struct MultilaterationParams {
     front.visit(v);
     v("window", epoch_window,
       "epoch window [s], or auto (one round of ranges from the data's rate)");
+    v("continuity", continuity,
+      "a fix the tag cannot have reached since the last (iq_vmax, iq_floor) is replaced by the "
+      "reachable position that the most of the epoch's ranges fit, leaving the others out (a "
+      "wrong range among three can fit the mirror image exactly); 0: every fix as it is");
     learning.visit(v);
   }
 };
