@@ -193,6 +193,13 @@ constexpr std::array<EnumName<MultilaterationSolver>, 3> enumNames(Multilaterati
            {MultilaterationSolver::kChan, "chan"}}};
 }
 
+/// The `continuity` key of the methods that form a fix per epoch (fix_continuity.hpp).
+inline constexpr const char* kContinuityHelp =
+    "a fix the tag cannot have reached since the last kept one (iq_floor + v dt + 3 std, v = "
+    "iq_vmax or 3 times the learnt RMS speed) is replaced by the reachable pair intersection "
+    "that fits every range but one (a wrong range among three can fit the mirror image "
+    "exactly); 0: every fix as it is";
+
 /// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds
 /// after its first range, or a second range of an anchor-tag link already in it.
 ///

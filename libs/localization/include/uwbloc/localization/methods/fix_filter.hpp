@@ -32,10 +32,7 @@ struct FixFilterParams {
     v("gate", gate, "chi-square gate on the position innovation (2 dof)");
     v("max_gated", max_gated, "consecutive gated fixes before re-initialising");
     v("init_residual", init_residual, "largest residual norm of an initialising fix [m]");
-    v("continuity", continuity,
-      "a fix the tag cannot have reached since the last (iq_vmax, iq_floor) is replaced by the "
-      "reachable position that the most of the epoch's ranges fit, leaving the others out (a "
-      "wrong range among three can fit the mirror image exactly); 0: every fix as it is");
+    v("continuity", continuity, kContinuityHelp);
     learning.visit(v);
   }
 };

@@ -20,10 +20,7 @@ struct MultilaterationParams {
     front.visit(v);
     v("window", epoch_window,
       "epoch window [s], or auto (one round of ranges from the data's rate)");
-    v("continuity", continuity,
-      "a fix the tag cannot have reached since the last (iq_vmax, iq_floor) is replaced by the "
-      "reachable position that the most of the epoch's ranges fit, leaving the others out (a "
-      "wrong range among three can fit the mirror image exactly); 0: every fix as it is");
+    v("continuity", continuity, kContinuityHelp);
     learning.visit(v);
   }
 };
