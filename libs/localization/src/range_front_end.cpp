@@ -262,13 +262,20 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver
     return std::nullopt;
   }
   if (!continuity) return fix;
-  if (!continuity_seeded_ && initial_pose_)
-    continuity_.seed(initial_time_,
-                     tagFromRobot(*initial_pose_, epoch.front().measurement.tag_on_robot));
+  std::optional<Eigen::Vector2d> seed;
+  if (initial_pose_) seed = tagFromRobot(*initial_pose_, epoch.front().measurement.tag_on_robot);
+  return continuityChecked(
+      epoch, fix, planar, [&](const auto& subset) { return multilaterate(solver, subset); },
+      Eigen::Vector2d::Zero(), seed);
+}
+
+std::optional<uwb::Fix> EpochUwbEstimator::continuityChecked(
+    const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
+    const std::vector<uwb::PlanarRange>& planar, const FixContinuity::Solver& solve,
+    const Eigen::Vector2d& offset, const std::optional<Eigen::Vector2d>& seed) {
+  if (!continuity_seeded_ && seed) continuity_.seed(initial_time_, *seed);
   continuity_seeded_ = true;
-  auto checked = continuity_.check(epochTime(epoch), fix, planar, [&](const auto& subset) {
-    return multilaterate(solver, subset);
-  });
+  auto checked = continuity_.check(epochTime(epoch), fix, planar, solve, offset);
   if (checked.outcome == Continuity::kUnreachable) {
     countRejection(toString(checked.outcome));
   } else if (checked.outcome != Continuity::kAsIs) {

@@ -42,8 +42,22 @@ double residualNorm(const std::vector<PlanarRange>& ranges, const Eigen::Vector2
   return std::sqrt(s);
 }
 
-// Fills covariance and residual of a fix at its position; the covariance is the CRLB there.
-Fix finish(const std::vector<PlanarRange>& ranges, const Eigen::Vector2d& p, int iterations) {
+std::optional<Fix> precheck(const std::vector<PlanarRange>& ranges) {
+  Fix fix;
+  if (ranges.size() < 3) {
+    fix.status = FixStatus::kTooFewAnchors;
+    return fix;
+  }
+  if (degenerateGeometry(ranges)) {
+    fix.status = FixStatus::kDegenerate;
+    return fix;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+Fix fixAt(const std::vector<PlanarRange>& ranges, const Eigen::Vector2d& p, int iterations) {
   Fix fix;
   fix.position = p;
   fix.iterations = iterations;
@@ -61,21 +75,6 @@ Fix finish(const std::vector<PlanarRange>& ranges, const Eigen::Vector2d& p, int
   fix.status = FixStatus::kOk;
   return fix;
 }
-
-std::optional<Fix> precheck(const std::vector<PlanarRange>& ranges) {
-  Fix fix;
-  if (ranges.size() < 3) {
-    fix.status = FixStatus::kTooFewAnchors;
-    return fix;
-  }
-  if (degenerateGeometry(ranges)) {
-    fix.status = FixStatus::kDegenerate;
-    return fix;
-  }
-  return std::nullopt;
-}
-
-}  // namespace
 
 std::optional<Eigen::Matrix2d> crlb2d(const std::vector<PlanarRange>& ranges,
                                       const Eigen::Vector2d& position) {
@@ -108,7 +107,7 @@ Fix solveLinearLS(const std::vector<PlanarRange>& ranges) {
            r0.anchor.squaredNorm();
   }
   const Eigen::Vector2d p = a.colPivHouseholderQr().solve(b);
-  return finish(ranges, p, 1);
+  return fixAt(ranges, p, 1);
 }
 
 Fix solveGaussNewton(const std::vector<PlanarRange>& ranges,
@@ -141,10 +140,10 @@ Fix solveGaussNewton(const std::vector<PlanarRange>& ranges,
     p += step;
     if (step.norm() < params.tolerance) {
       ++it;
-      return finish(ranges, p, it);
+      return fixAt(ranges, p, it);
     }
   }
-  Fix fix = finish(ranges, p, it);
+  Fix fix = fixAt(ranges, p, it);
   // Slow final convergence is still a usable fix; only a blown-up iterate is a failure.
   if (!p.allFinite()) fix.status = FixStatus::kNoConvergence;
   return fix;
@@ -185,7 +184,7 @@ Fix solveChan(const std::vector<PlanarRange>& ranges) {
   const Eigen::MatrixXd gtw = ga.transpose() * psi_inv.asDiagonal();
   const Eigen::Matrix3d na = gtw * ga;
   const Eigen::Vector3d za = na.ldlt().solve(gtw * h);
-  if (!za.allFinite()) return finish(ranges, Eigen::Vector2d::Constant(NAN), 1);
+  if (!za.allFinite()) return fixAt(ranges, Eigen::Vector2d::Constant(NAN), 1);
   const Eigen::Matrix3d cov_a = na.inverse();
 
   // Step 2: h' = [x^2, y^2, R] = G' [x^2; y^2] with G' = [1 0; 0 1; 1 1],
@@ -206,7 +205,7 @@ Fix solveChan(const std::vector<PlanarRange>& ranges) {
   } else {
     p = za.head<2>();  // noise-free input: step 1 is already exact
   }
-  return finish(ranges, p + origin, 2);
+  return fixAt(ranges, p + origin, 2);
 }
 
 std::vector<Eigen::Vector2d> circleIntersections(const PlanarRange& a, const PlanarRange& b) {
@@ -245,7 +244,7 @@ Fix solveThreeAnchors(const std::vector<PlanarRange>& ranges) {
   const Eigen::Vector2d& pb = points.back();
   const double ea = std::abs((pa - c3.anchor).norm() - c3.range);
   const double eb = std::abs((pb - c3.anchor).norm() - c3.range);
-  return finish(ranges, ea <= eb ? pa : pb, 1);
+  return fixAt(ranges, ea <= eb ? pa : pb, 1);
 }
 
 }  // namespace uwbloc::uwb

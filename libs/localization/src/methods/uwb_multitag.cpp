@@ -149,23 +149,25 @@ UwbMultitag::UwbMultitag(const UwbMultitagParams& params, const EstimatorContext
     : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kAll, params.learning),
       params_(params) {}
 
-Eigen::Matrix3d UwbMultitag::scaledCovariance(const MultitagFix& fix, size_t ranges) {
+void UwbMultitag::noteVariance(const MultitagFix& fix, size_t ranges) {
+  if (ranges <= 3) return;
+  const double v = fix.rms_residual * fix.rms_residual * static_cast<double>(ranges) /
+                   static_cast<double>(ranges - 3);
+  constexpr size_t kWindow = 201;
+  if (variances_.size() < kWindow)
+    variances_.push_back(v);
+  else
+    variances_[variance_count_ % kWindow] = v;
+  ++variance_count_;
+}
+
+double UwbMultitag::rangeVariance() {
   const double sigma = rangeSigma();
-  if (ranges > 3) {
-    const double v = fix.rms_residual * fix.rms_residual * static_cast<double>(ranges) /
-                     static_cast<double>(ranges - 3);
-    constexpr size_t kWindow = 201;
-    if (variances_.size() < kWindow)
-      variances_.push_back(v);
-    else
-      variances_[variance_count_ % kWindow] = v;
-    ++variance_count_;
-  }
-  if (variances_.size() < 5) return fix.covariance;
+  if (variances_.size() < 5) return sigma * sigma;
   scratch_.assign(variances_.begin(), variances_.end());  // reuses its storage
   const auto mid = scratch_.begin() + static_cast<long>(scratch_.size() / 2);
   std::nth_element(scratch_.begin(), mid, scratch_.end());
-  return fix.covariance * (std::max(*mid, 1e-6) / (sigma * sigma));
+  return std::max(*mid, 1e-6);
 }
 
 bool UwbMultitag::filter(double t, const MultitagFix& fix, const Eigen::Matrix3d& r) {
@@ -217,19 +219,53 @@ bool UwbMultitag::filter(double t, const MultitagFix& fix, const Eigen::Matrix3d
   return true;
 }
 
+std::optional<MultitagFix> UwbMultitag::continuityChecked(const std::vector<AcceptedRange>& epoch,
+                                                          const MultitagFix& fix, bool* replaced) {
+  const Eigen::Vector2d lever =
+      rotation(fix.pose.z()) * epoch.front().measurement.tag_on_robot.head<2>();
+  // The fix's covariance and the ranges' std as the epochs' residuals show them.
+  const double variance = rangeVariance(), sigma = rangeSigma();
+  const auto planar = toPlanar(epoch, std::sqrt(variance));
+  uwb::Fix tag;
+  tag.status = uwb::FixStatus::kOk;
+  tag.position = fix.pose.head<2>() + lever;
+  tag.covariance = fix.covariance.topLeftCorner<2, 2>() * (variance / (sigma * sigma));
+  std::optional<Eigen::Vector2d> seed;
+  if (initialPose()) seed = initialPose()->head<2>();
+  const auto checked = EpochUwbEstimator::continuityChecked(
+      epoch, tag, planar, [](const auto& subset) { return uwb::solveGaussNewton(subset); }, -lever,
+      seed);
+  *replaced = false;
+  if (!checked) return std::nullopt;
+  if (checked->position == tag.position) return fix;
+  *replaced = true;
+  MultitagFix out = fix;
+  out.pose.head<2>() = checked->position - lever;
+  out.covariance.topLeftCorner<2, 2>() = checked->covariance * (sigma * sigma / variance);
+  out.rms_residual = checked->residual_norm;
+  return out;
+}
+
 std::optional<PoseEstimate> UwbMultitag::onEpoch(const std::vector<AcceptedRange>& epoch) {
   const double t = epochTime(epoch);
   std::optional<Eigen::Vector3d> start;
   if (last_ && t - last_t_ <= params_.restart_after) start = last_;
-  const auto fix = solveMultitag(epoch, rangeSigma(), params_.huber, params_.max_iterations, start);
+  auto fix = solveMultitag(epoch, rangeSigma(), params_.huber, params_.max_iterations, start);
   if (!fix) {
     countRejection(epoch.size() < 3 ? "epoch_too_few_ranges" : "epoch_no_solution");
     return std::nullopt;
   }
+  // A replaced fix leaves ranges out: its residual does not feed the range variance.
+  bool replaced = false;
+  if (params_.continuity && fix->tags == 1) {
+    fix = continuityChecked(epoch, *fix, &replaced);
+    if (!fix) return std::nullopt;
+  }
   if (fix->tags >= 2) heading_seen_ = true;
   last_ = fix->pose;
   last_t_ = t;
-  const Eigen::Matrix3d r = scaledCovariance(*fix, epoch.size());
+  if (!replaced) noteVariance(*fix, epoch.size());
+  const Eigen::Matrix3d r = fix->covariance * (rangeVariance() / (rangeSigma() * rangeSigma()));
   PoseEstimate e;
   e.t = t;
   e.heading_valid = heading_seen_;

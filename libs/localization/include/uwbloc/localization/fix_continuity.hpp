@@ -53,22 +53,26 @@ class FixContinuity {
   /// ranges but one at most (within max(3 sigma, floor): one fault at a time) is a candidate; the
   /// one that fits the most, then the nearest, is re-solved by `solve` over the ranges it fits
   /// (three or more) or kept as it is (two).
+  ///
+  /// `offset` moves the ranges' point (a tag) to the point whose continuity is checked and kept
+  /// (the robot, with the lever arm rotated by a known heading: -R(theta) l); the fix returned is
+  /// the ranges' point.
   Checked check(double t, const uwb::Fix& fix, const std::vector<uwb::PlanarRange>& ranges,
-                const Solver& solve);
+                const Solver& solve, const Eigen::Vector2d& offset = Eigen::Vector2d::Zero());
 
  private:
   /// Within floor + max_speed dt + 3 (the fix's largest std, with `own_std`, + the last kept
   /// one's) of the last kept position. A candidate is judged without its own std: a pair's
   /// intersection near the line through its anchors has a large one, and would reach anywhere.
-  bool reachable(double t, const uwb::Fix& fix, bool own_std) const;
-  void keep(double t, const uwb::Fix& fix);
+  bool reachable(double t, const uwb::Fix& fix, bool own_std, const Eigen::Vector2d& offset) const;
+  void keep(double t, const uwb::Fix& fix, const Eigen::Vector2d& offset);
   /// The best reachable candidate position, with the indices of the ranges it fits.
   struct Candidate {
     uwb::Fix fix;
     std::vector<int> in;
   };
   std::optional<Candidate> bestReachable(double t, const std::vector<uwb::PlanarRange>& ranges,
-                                         const Solver& solve) const;
+                                         const Solver& solve, const Eigen::Vector2d& offset) const;
 
   FixContinuityParams params_;
   std::optional<Eigen::Vector2d> last_;

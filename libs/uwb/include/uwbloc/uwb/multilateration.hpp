@@ -64,6 +64,11 @@ Fix solveThreeAnchors(const std::vector<PlanarRange>& ranges);
 /// anchors coincide.
 std::vector<Eigen::Vector2d> circleIntersections(const PlanarRange& a, const PlanarRange& b);
 
+/// A fix at a given position: its residual over `ranges` and the CRLB there as its covariance;
+/// kNoConvergence when the position is not finite, kDegenerate when the bound is singular.
+Fix fixAt(const std::vector<PlanarRange>& ranges, const Eigen::Vector2d& position,
+          int iterations = 0);
+
 /// Static Cramér–Rao bound of a 2D position: sigma^2 (H^T H)^-1 with unit-vector rows H (equal
 /// sigma), or (H^T W H)^-1 with W = diag(1/sigma_i^2). Returns nothing when singular.
 std::optional<Eigen::Matrix2d> crlb2d(const std::vector<PlanarRange>& ranges,

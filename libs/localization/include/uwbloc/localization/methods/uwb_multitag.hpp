@@ -38,6 +38,9 @@ struct UwbMultitagParams {
   double yaw_accel_psd = 1.0;  ///< white angular acceleration density [rad^2/s^3]
   double gate = 16.27;         ///< chi-square gate on a fix's innovation (3 dof, 99.9 %)
   int max_gated = 20;          ///< restart the filter after this many gated fixes in a row
+  /// Check each one-tag epoch's fix against the robot's reach (fix_continuity.hpp); an epoch of
+  /// several tags fits the heading too, and is taken as it is.
+  bool continuity = true;
   /// calib, calib_bias: the learning start (range_noise.hpp), from the primary tag's ranges; the
   /// scale and std learnt apply to every tag's.
   RangeLearningParams learning;
@@ -56,6 +59,7 @@ struct UwbMultitagParams {
     v("yaw_accel_psd", yaw_accel_psd, "smoothing: white angular acceleration density [rad^2/s^3]");
     v("gate", gate, "smoothing: chi-square gate on a fix's innovation (3 dof)");
     v("max_gated", max_gated, "smoothing: restart after this many gated fixes in a row");
+    v("continuity", continuity, kContinuityHelp);
     learning.visit(v);
   }
 };
@@ -79,14 +83,22 @@ class UwbMultitag : public EpochUwbEstimator {
 
  protected:
   std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) override;
-  /// The fixes' variance comes from their own residuals (scaledCovariance), and the learnt std,
+  /// The fixes' variance comes from their own residuals (rangeVariance), and the learnt std,
   /// which counts NLOS ranges, would only widen the Huber threshold (simulated office: 0.377 m
   /// with it, 0.313 without).
   bool estimatesOwnNoise() const override { return true; }
 
  private:
-  /// The fix's covariance scaled by the range variance the data shows.
-  Eigen::Matrix3d scaledCovariance(const MultitagFix& fix, size_t ranges);
+  /// Adds an epoch's residual variance (sum r^2 / (n - 3), with more than 3 ranges) to the window.
+  void noteVariance(const MultitagFix& fix, size_t ranges);
+  /// The range variance the data shows: the window's median (rangeSigma()^2 until 5 epochs).
+  /// A fix's covariance is scaled by it over rangeSigma()^2.
+  double rangeVariance();
+  /// A one-tag epoch's fix checked for continuity of the robot's position (the tag's point moved
+  /// by the lever arm at the held heading); nothing when refused. `replaced`: a position that
+  /// leaves ranges out was used.
+  std::optional<MultitagFix> continuityChecked(const std::vector<AcceptedRange>& epoch,
+                                               const MultitagFix& fix, bool* replaced);
   /// Filters a fix; false when gated.
   bool filter(double t, const MultitagFix& fix, const Eigen::Matrix3d& r);
 
