@@ -259,10 +259,10 @@ TEST(LearningStart, SharedByIdenticalStartsOnly) {
   auto reused = [](const eval::RunResult& r) {
     return r.statistics.events.count("range_model_reused") != 0;
   };
-  loc::setLearningCacheEnabled(false);
+  eval::setLearningCacheEnabled(false);
   const auto own = eval::runMethod(ds, "uwb-ckf", 1);
   EXPECT_FALSE(reused(own));
-  loc::setLearningCacheEnabled(true);
+  eval::setLearningCacheEnabled(true);
   EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ekf", 1)));
   const auto shared = eval::runMethod(ds, "uwb-ckf", 1);
   EXPECT_TRUE(reused(shared));
@@ -287,6 +287,28 @@ TEST(LearningStart, SharedByIdenticalStartsOnly) {
   EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ekf", 2)));
   EXPECT_FALSE(reused(eval::runMethod(ds, "uwb-ekf:calib=30", 1)));
   EXPECT_TRUE(reused(eval::runMethod(ds, "uwb-ekf:calib=30", 1)));
+}
+
+// An estimator made outside the replay layer (a robot's own context, no cache) shares nothing:
+// the library keeps no model from one run to the next. Given one cache, two runs share it.
+TEST(LearningStart, SharedOnlyThroughTheContextsCache) {
+  const data::Dataset ds = test::makeSquareLoop(13, 0.2, 70.0);
+  auto events = [&](loc::EstimatorContext ctx) {
+    auto est = loc::Registry::builtin().create("uwb-ekf", ctx);
+    for (const auto& e : ds.events) est->process(e);
+    est->finishAll();
+    return est->statistics().events;
+  };
+  auto ctx = eval::makeContext(ds, 1);
+  ctx.learning_cache = nullptr;
+  for (int i = 0; i < 2; ++i) {
+    const auto e = events(ctx);
+    EXPECT_EQ(e.at("range_model_learnt"), 1);
+    EXPECT_EQ(e.count("range_model_reused"), 0u) << i;
+  }
+  ctx.learning_cache = std::make_shared<loc::LearningCache>();
+  EXPECT_EQ(events(ctx).count("range_model_reused"), 0u);
+  EXPECT_EQ(events(ctx).count("range_model_reused"), 1u);
 }
 
 // The kidnapped robot in the simulated room (240 s, carried 8 s along its path, 2.4 m, at

@@ -238,7 +238,7 @@ int RunMethodsCommand::run() {
   std::vector<eval::MethodJob> jobs;
   const auto wall_start = std::chrono::steady_clock::now();
   int jobs_used = jobs_;
-  loc::setLearningCacheEnabled(!own_learning_);
+  eval::setLearningCacheEnabled(!own_learning_);
   for (const auto& m : runnableMethods(ds, opt, overrides, methods, all, jobs_used))
     jobs.push_back({m, overridesFor(overrides, m)});
   // The bounds (a CRLB over the reference) need no run: computed beside them.

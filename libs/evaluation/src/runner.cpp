@@ -14,13 +14,35 @@
 
 #include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/evaluation/trajectory_eval.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/localization/registry.hpp"
 #include "uwbloc/nlos/model.hpp"
 
 namespace uwbloc::eval {
 
+namespace {
+
+std::mutex learning_cache_mutex;
+std::shared_ptr<loc::LearningCache> learning_cache = std::make_shared<loc::LearningCache>();
+
+std::shared_ptr<loc::LearningCache> processLearningCache() {
+  const std::lock_guard lock(learning_cache_mutex);
+  return learning_cache;
+}
+
+}  // namespace
+
+void setLearningCacheEnabled(bool enabled) {
+  const std::lock_guard lock(learning_cache_mutex);
+  if (!enabled)
+    learning_cache.reset();
+  else if (!learning_cache)
+    learning_cache = std::make_shared<loc::LearningCache>();
+}
+
 loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed) {
   loc::EstimatorContext ctx;
+  ctx.learning_cache = processLearningCache();
   ctx.anchors = dataset.anchors;
   ctx.seed = seed;
   ctx.map = dataset.map;

@@ -75,28 +75,37 @@ class Fingerprint {
   uint64_t h_ = 14695981039346656037ull;
 };
 
-// The learnt models of this process, newest last: (the learner's key and its events'
-// fingerprint, its statistics, ready or still being solved by another run). A few suffice: the
-// methods of one compare share one or two.
-struct LearntModels {
-  std::mutex mutex;
-  std::deque<std::pair<std::string, std::shared_future<EstimatorStatistics>>> models;
-  bool enabled = true;
-  static constexpr size_t kKept = 8;
-};
-
-LearntModels& learntModels() {
-  static LearntModels m;
-  return m;
-}
-
 }  // namespace
 
-void setLearningCacheEnabled(bool enabled) {
-  auto& m = learntModels();
-  std::lock_guard lock(m.mutex);
-  m.enabled = enabled;
-  if (!enabled) m.models.clear();
+EstimatorStatistics LearningCache::get(const std::string& key,
+                                       const std::function<EstimatorStatistics()>& solve,
+                                       bool* reused) {
+  // The first run with this key solves it; the others (at once, or later) wait for its result.
+  std::shared_future<EstimatorStatistics> earlier;
+  std::promise<EstimatorStatistics> solving;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [k, s] : models_)
+      if (k == key) earlier = s;
+    if (!earlier.valid()) {
+      models_.emplace_back(key, solving.get_future().share());
+      if (models_.size() > kept_) models_.pop_front();
+    }
+  }
+  *reused = earlier.valid();
+  if (earlier.valid()) return earlier.get();
+  try {
+    EstimatorStatistics s = solve();
+    solving.set_value(s);
+    return s;
+  } catch (...) {
+    solving.set_exception(std::current_exception());
+    std::lock_guard lock(mutex_);
+    models_.erase(std::remove_if(models_.begin(), models_.end(),
+                                 [&](const auto& km) { return km.first == key; }),
+                  models_.end());
+    throw;
+  }
 }
 
 void countLearnt(const EstimatorStatistics& learnt, EstimatorStatistics& stats) {
@@ -122,7 +131,7 @@ LearningStart makeLearningStart(const AutoDouble& sigma, const AutoDouble* q,
   f.add(context.initial_pose), f.add(context.initial_time), f.add(context.seed);
   f.add(context.range_sigma), f.add(context.robot_tags), f.add(learning.calib);
   return LearningStart(Registry::builtin().create(spec.str(), context), learning.calib,
-                       spec.str() + "|" + f.hex());
+                       spec.str() + "|" + f.hex(), context.learning_cache);
 }
 
 void learnAccelPsd(const EstimatorStatistics& learnt, const AutoDouble& q, double tau,
@@ -195,37 +204,11 @@ EstimatorStatistics LearningStart::sharedStatistics() {
   Fingerprint f;
   for (const auto& e : kept_) f.add(e);
   const std::string key = share_key_ + "|" + std::to_string(kept_.size()) + "|" + f.hex();
-  auto& m = learntModels();
-  // The first run with this key solves it; the others (at once, or later) wait for its result.
-  std::shared_future<EstimatorStatistics> reused;
-  std::promise<EstimatorStatistics> solving;
-  {
-    std::lock_guard lock(m.mutex);
-    for (const auto& [k, s] : m.models)
-      if (k == key) reused = s;
-    if (!reused.valid() && m.enabled) {
-      m.models.emplace_back(key, solving.get_future().share());
-      if (m.models.size() > LearntModels::kKept) m.models.pop_front();
-    }
-  }
-  if (reused.valid()) {
-    EstimatorStatistics s = reused.get();
-    ++s.events["range_model_reused"];
-    return s;
-  }
-  try {
-    EstimatorStatistics s = solve();
-    solving.set_value(s);
-    return s;
-  } catch (...) {
-    // Those waiting get the error; a later run solves it again.
-    solving.set_exception(std::current_exception());
-    std::lock_guard lock(m.mutex);
-    m.models.erase(std::remove_if(m.models.begin(), m.models.end(),
-                                  [&](const auto& km) { return km.first == key; }),
-                   m.models.end());
-    throw;
-  }
+  bool reused = false;
+  EstimatorStatistics s = cache_->get(
+      key, [this] { return solve(); }, &reused);
+  if (reused) ++s.events["range_model_reused"];
+  return s;
 }
 
 void LearningStart::end(const Learnt& learnt, const Step& step) {

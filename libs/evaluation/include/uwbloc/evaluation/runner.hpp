@@ -29,8 +29,15 @@ struct RunResult {
   uint64_t seed = 0;
 };
 
-/// What a method is given: anchors, map, the first ground-truth pose as start pose, the seed.
+/// What a method is given: anchors, map, the first ground-truth pose as start pose, the seed,
+/// and this process's learning cache while it is on.
 loc::EstimatorContext makeContext(const data::Dataset& dataset, uint64_t seed);
+
+/// The runs of this process (a compare, a benchmark, a test binary) share one learning cache
+/// (loc::LearningCache): methods with identical learning starts solve them once. Off (compare
+/// --own-learning): every run solves its own start, and its time includes it. On by default;
+/// turning it off empties it.
+void setLearningCacheEnabled(bool enabled);
 
 /// The dataset lacks something the method needs: returns what (empty when nothing is missing).
 std::string missingNeeds(const data::Dataset& dataset, const std::string& spec);

@@ -23,6 +23,7 @@ class Model;
 namespace uwbloc::loc {
 
 class OccupancyMap;
+class LearningCache;
 
 struct PoseEstimate {
   double t = 0.0;
@@ -105,6 +106,10 @@ struct EstimatorContext {
   /// Resolves a method's `nlos_model=` name to a model. The application loads the file (an
   /// estimator never opens one); empty: a method given nlos_model refuses it.
   std::function<std::shared_ptr<const nlos::Model>(const std::string&)> nlos_models;
+  /// Learnt models to share with the other runs given the same cache (range_noise.hpp); none:
+  /// the method solves its own learning start (an estimator library keeps no state of its own
+  /// between runs).
+  std::shared_ptr<LearningCache> learning_cache;
 };
 
 class Estimator {

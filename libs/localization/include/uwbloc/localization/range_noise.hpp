@@ -11,8 +11,10 @@
 #include <cmath>
 #include <deque>
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -88,9 +90,24 @@ struct RangeLearningParams {
   }
 };
 
-/// Turns the sharing of learnt models off (on by default) or on again, for the whole process:
-/// with it off, every method solves its own learning start and its time includes it.
-void setLearningCacheEnabled(bool enabled);
+/// Learnt models shared between runs (the methods of a compare or a benchmark): a learning start
+/// whose learner, context and events are those of an earlier one given the same cache takes that
+/// one's statistics instead of solving the same graph again. A run gets it through
+/// EstimatorContext::learning_cache; without one it solves its own start. Thread-safe: a run
+/// that asks for a model another run is solving waits for it. Keeps the last `kept` models.
+class LearningCache {
+ public:
+  explicit LearningCache(size_t kept = 8) : kept_(kept) {}
+  /// The statistics under `key`: an earlier run's (`*reused` true), or `solve`'s, kept for the
+  /// next. When `solve` throws, those waiting get the error and a later run solves it again.
+  EstimatorStatistics get(const std::string& key, const std::function<EstimatorStatistics()>& solve,
+                          bool* reused);
+
+ private:
+  std::mutex mutex_;
+  std::deque<std::pair<std::string, std::shared_future<EstimatorStatistics>>> models_;
+  size_t kept_;
+};
 
 /// A method took a learnt model (`learnt`, the learner's statistics): counts range_model_learnt
 /// in `stats`, and range_model_reused when the model came from an earlier identical start.
@@ -119,11 +136,15 @@ class LearningStart {
   using Step = std::function<std::optional<PoseEstimate>(const Event&)>;
   LearningStart() = default;
   /// No learner: every event goes straight to the filter.
-  /// `share_key` (not empty): the learner's identity (its spec and context); the learner then
-  /// takes the kept events only at the end, and not at all when a start with the same key and
-  /// the same events has been learnt in this process (its statistics are taken instead).
-  LearningStart(std::unique_ptr<Estimator> learner, double span, std::string share_key = {})
-      : learner_(std::move(learner)), span_(span), share_key_(std::move(share_key)) {}
+  /// With a `cache`, `share_key` is the learner's identity (its spec and context); the learner
+  /// then takes the kept events only at the end, and not at all when a start with the same key
+  /// and the same events has been learnt into that cache (its statistics are taken instead).
+  LearningStart(std::unique_ptr<Estimator> learner, double span, std::string share_key = {},
+                std::shared_ptr<LearningCache> cache = nullptr)
+      : learner_(std::move(learner)),
+        span_(span),
+        share_key_(cache ? std::move(share_key) : std::string()),
+        cache_(share_key_.empty() ? nullptr : std::move(cache)) {}
   bool learning() const { return learner_ != nullptr; }
   /// One event: kept while learning (ending the learning when its span is over), else stepped;
   /// returns the oldest queued estimate.
@@ -135,11 +156,12 @@ class LearningStart {
   void end(const Learnt& learnt, const Step& step);
   /// The learner's statistics after the kept events.
   EstimatorStatistics solve();
-  /// The same, taken from an identical start of this process when there is one.
+  /// The same, taken from an identical start in the cache when there is one.
   EstimatorStatistics sharedStatistics();
   std::unique_ptr<Estimator> learner_;
   double span_ = 0.0;
   std::string share_key_;
+  std::shared_ptr<LearningCache> cache_;
   std::optional<double> t0_;
   std::vector<Event> kept_;
   std::deque<PoseEstimate> pending_;
@@ -148,9 +170,10 @@ class LearningStart {
 /// A method's learning start: graph-uwb with the method's own sigma, calib_bias and
 /// (when the method has one) q, as its learner. None (no learner: every event goes straight to
 /// the filter) when `learning.calib` is 0 or nothing is left to learn (sigma fixed, calib_bias
-/// off, q fixed or absent). The learnt model is shared: in one process, a learning start whose
-/// learner, context and events are those of an earlier one (the other methods of a compare or a
-/// benchmark) takes that one's statistics instead of solving the same graph again.
+/// off, q fixed or absent). With the context's learning cache the learnt model is shared: a
+/// learning start whose learner, context and events are those of an earlier one (the other
+/// methods of a compare or a benchmark) takes that one's statistics instead of solving the same
+/// graph again.
 LearningStart makeLearningStart(const AutoDouble& sigma, const AutoDouble* q,
                                 const RangeLearningParams& learning,
                                 const EstimatorContext& context);
