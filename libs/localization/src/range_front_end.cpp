@@ -265,11 +265,12 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver
   std::optional<Eigen::Vector2d> seed;
   if (initial_pose_) seed = tagFromRobot(*initial_pose_, epoch.front().measurement.tag_on_robot);
   return continuityChecked(
-      epoch, fix, planar, [&](const auto& subset) { return multilaterate(solver, subset); },
-      Eigen::Vector2d::Zero(), seed);
+             epoch, fix, planar, [&](const auto& subset) { return multilaterate(solver, subset); },
+             Eigen::Vector2d::Zero(), seed)
+      .fix;
 }
 
-std::optional<uwb::Fix> EpochUwbEstimator::continuityChecked(
+FixContinuity::Checked EpochUwbEstimator::continuityChecked(
     const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
     const std::vector<uwb::PlanarRange>& planar, const FixContinuity::Solver& solve,
     const Eigen::Vector2d& offset, const std::optional<Eigen::Vector2d>& seed) {
@@ -284,7 +285,7 @@ std::optional<uwb::Fix> EpochUwbEstimator::continuityChecked(
       countRejection("fix_continuity_left_out",
                      epoch[static_cast<size_t>(i)].measurement.anchor_id);
   }
-  return checked.fix;
+  return checked;
 }
 
 uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::PlanarRange>& ranges) {

@@ -174,7 +174,7 @@ std::optional<PoseEstimate> LearningStart::process(const Event& event, const Lea
     const double t = eventTime(event);
     if (!t0_) t0_ = t;
     kept_.push_back(event);
-    if (share_key_.empty()) learner_->process(event);
+    if (!shared()) learner_->process(event);
     if (t - *t0_ >= span_) end(learnt, step);
   } else if (auto out = step(event)) {
     pending_.push_back(*out);
@@ -194,7 +194,7 @@ std::vector<PoseEstimate> LearningStart::finish(const Learnt& learnt, const Step
 
 EstimatorStatistics LearningStart::solve() {
   // A shared start's learner has not seen the kept events yet.
-  if (!share_key_.empty())
+  if (shared())
     for (const auto& e : kept_) learner_->process(e);
   learner_->finishAll();
   return learner_->statistics();
@@ -212,7 +212,7 @@ EstimatorStatistics LearningStart::sharedStatistics() {
 }
 
 void LearningStart::end(const Learnt& learnt, const Step& step) {
-  learnt(share_key_.empty() ? solve() : sharedStatistics());
+  learnt(shared() ? sharedStatistics() : solve());
   learner_.reset();
   for (const auto& e : kept_)
     if (auto out = step(e)) pending_.push_back(*out);

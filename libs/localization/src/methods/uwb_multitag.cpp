@@ -235,14 +235,13 @@ std::optional<MultitagFix> UwbMultitag::continuityChecked(const std::vector<Acce
   const auto checked = EpochUwbEstimator::continuityChecked(
       epoch, tag, planar, [](const auto& subset) { return uwb::solveGaussNewton(subset); }, -lever,
       seed);
-  *replaced = false;
-  if (!checked) return std::nullopt;
-  if (checked->position == tag.position) return fix;
-  *replaced = true;
+  *replaced = checked.outcome == Continuity::kExcluded;
+  if (!checked.fix) return std::nullopt;
+  if (!*replaced) return fix;
   MultitagFix out = fix;
-  out.pose.head<2>() = checked->position - lever;
-  out.covariance.topLeftCorner<2, 2>() = checked->covariance * (sigma * sigma / variance);
-  out.rms_residual = checked->residual_norm;
+  out.pose.head<2>() = checked.fix->position - lever;
+  out.covariance.topLeftCorner<2, 2>() = checked.fix->covariance * (sigma * sigma / variance);
+  out.rms_residual = checked.fix->residual_norm;
   return out;
 }
 

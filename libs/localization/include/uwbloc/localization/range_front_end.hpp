@@ -266,14 +266,13 @@ class EpochUwbEstimator : public UwbEstimator {
                                    const std::vector<uwb::PlanarRange>& planar, bool continuity);
   /// `fix` of the epoch's tag from `planar`, checked for continuity (FixContinuity::check with
   /// `solve` and `offset`; the check starts from `seed`, the start pose's point, when the run has
-  /// one). Nothing when the check refuses the epoch; its outcome and each range it leaves out
-  /// are counted.
-  std::optional<uwb::Fix> continuityChecked(const std::vector<AcceptedRange>& epoch,
-                                            const uwb::Fix& fix,
-                                            const std::vector<uwb::PlanarRange>& planar,
-                                            const FixContinuity::Solver& solve,
-                                            const Eigen::Vector2d& offset,
-                                            const std::optional<Eigen::Vector2d>& seed);
+  /// one). Its outcome and each range it leaves out are counted; no fix when it refuses the epoch.
+  FixContinuity::Checked continuityChecked(const std::vector<AcceptedRange>& epoch,
+                                           const uwb::Fix& fix,
+                                           const std::vector<uwb::PlanarRange>& planar,
+                                           const FixContinuity::Solver& solve,
+                                           const Eigen::Vector2d& offset,
+                                           const std::optional<Eigen::Vector2d>& seed);
   /// The start pose, when the run has one.
   const std::optional<Eigen::Vector3d>& initialPose() const { return initial_pose_; }
 

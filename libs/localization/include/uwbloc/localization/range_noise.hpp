@@ -143,8 +143,8 @@ class LearningStart {
                 std::shared_ptr<LearningCache> cache = nullptr)
       : learner_(std::move(learner)),
         span_(span),
-        share_key_(cache ? std::move(share_key) : std::string()),
-        cache_(share_key_.empty() ? nullptr : std::move(cache)) {}
+        share_key_(std::move(share_key)),
+        cache_(std::move(cache)) {}
   bool learning() const { return learner_ != nullptr; }
   /// One event: kept while learning (ending the learning when its span is over), else stepped;
   /// returns the oldest queued estimate.
@@ -154,6 +154,8 @@ class LearningStart {
 
  private:
   void end(const Learnt& learnt, const Step& step);
+  /// The learnt model may come from the cache (a cache and a key to find it by).
+  bool shared() const { return cache_ && !share_key_.empty(); }
   /// The learner's statistics after the kept events.
   EstimatorStatistics solve();
   /// The same, taken from an identical start in the cache when there is one.
