@@ -75,8 +75,8 @@ Registry makeBuiltin() {
                     "gamma", "1"));
   r.add(makeMethod<UwbCtrvEkf, UwbCtrvEkfParams>(
       "uwb-ctrv-ekf",
-      "UWB only: the mobile-node paper's EKF, constant turn rate and velocity, on least-squares "
-      "fixes behind the increment-queue gate",
+      "UWB only: the mobile-node paper's EKF, constant turn rate and velocity, on multilateration "
+      "fixes (solver=ls: the paper's least squares) behind the increment-queue gate",
       {"ranges"}));
   r.add(makeMethod<UwbEkf, UwbEkfParams>(
       "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
