@@ -131,7 +131,8 @@ TEST(Plaza, GraphSmoothingBeatsDeadReckoningAndMultilateration) {
 // (4.614, 46.1 and 5.713 m before; an epoch of four ranges spans a second, in which the robot
 // moves about 2 m). uwb-ctrv-ekf: 3.187 m; 15.589 m on the paper's least-squares fixes (its
 // solver=ls), 9.448 m on Gauss-Newton fixes when a restart held the start pose's heading at rest
-// (the fixes off that line were refused again and again) instead of fitting a course to them.
+// (the fixes off that line were refused again and again; 5.538 m holding its last heading at
+// rest) instead of fitting a course to them.
 TEST(Plaza, RangesAloneLearnTheScale) {
   const auto src = test::sharedData("plaza_cmu_range_odometry");
   UWBLOC_REQUIRE_SHARED_DATA(src);

@@ -622,6 +622,7 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       const graph::RangeGraphParams p_without = p;
       const double spread_without = pooledSpread(g);
       p.estimate_bias = true;
+      p.common_bias = params_.bias_trial_common;
       const bool explains = solveOnce(g, p) && estimateSigma() &&
                             scaleExplains(p_without.range_sigma, p.range_sigma) &&
                             !widensSpread(g, spread_without);

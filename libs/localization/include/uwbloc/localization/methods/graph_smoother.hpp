@@ -42,6 +42,7 @@ struct GraphSmootherParams {
   /// bias=auto with sigma=auto: also try the biases free (a bias on one anchor among few, which
   /// the path hides from the offsets)
   bool bias_trial = true;
+  bool bias_trial_common = false;    ///< the trial frees one bias shared by every anchor
   BiasMode scale = BiasMode::kAuto;  ///< a range scale common to the anchors: z = (1 + s) d + b
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
   bool estimate_anchors = false;  ///< anchors' x, y with a prior
@@ -82,6 +83,9 @@ struct GraphSmootherParams {
       "bias=auto with sigma=auto: when no offset stands out, also solve with the biases free and "
       "keep them when they explain a quarter of the range variance (a bias on one anchor among "
       "few, which the path hides from the offsets)");
+    v("bias_trial_common", bias_trial_common,
+      "the bias trial frees one bias common to every anchor instead of one per anchor (an "
+      "anchor whose error drifts over the learning span cannot pass for it)");
     v("scale", scale,
       "a range scale common to every anchor (z = (1 + s) d + bias): 0, 1 or auto (when the "
       "residuals grow with the distance, alike in both halves of the run)");
