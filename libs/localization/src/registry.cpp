@@ -57,16 +57,11 @@ Registry makeBuiltin() {
   r.add(makeMethod<UwbKf, UwbKfParams>(
       "uwb-kf", "UWB only: constant-velocity KF on multilateration fixes (loosely coupled)",
       {"ranges"}));
-  // No biases from its learning start by default: with them it scored worse where the others
-  // gained (CARMEN aces+uwb 1.258 -> 2.296 m, simulated greenhouse R2 0.576 -> 1.657 m; why its
-  // Sage-Husa R does not take them is not yet known).
-  r.add(
-      withDefault(makeMethod<UwbAkf, UwbAkfParams>(
-                      "uwb-akf",
-                      "UWB only: Sage-Husa adaptive KF on multilateration fixes (greenhouse paper "
-                      "eq. 15-16; mode=ranges: on each range)",
-                      {"ranges"}, makeUwbAkf),
-                  "calib_bias", "0"));
+  r.add(makeMethod<UwbAkf, UwbAkfParams>(
+      "uwb-akf",
+      "UWB only: Sage-Husa adaptive KF on multilateration fixes (greenhouse paper eq. 15-16; "
+      "mode=ranges: on each range)",
+      {"ranges"}, makeUwbAkf));
   r.add(withDefault(makeMethod<UwbAkf, UwbAkfParams>(
                         "uwb-iakf",
                         "UWB only: the greenhouse paper's improved adaptive KF: uwb-akf with the "
