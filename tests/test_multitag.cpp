@@ -328,6 +328,13 @@ TEST(MobileNode, StillNodeIsAnAnchorAMovingOneIsNot) {
       EXPECT_LT((anchor->position.head<2>() - Eigen::Vector2d(1.5, 2.0)).norm(), 0.1);
       EXPECT_DOUBLE_EQ(anchor->position.z(), 0.8);
       EXPECT_FALSE(mobile.anchor(uwb::kMobileAnchorBase + 1, t + 3.0).has_value());  // stale
+      // Its position is known to the fixes' scatter (0.1 m ranges: about 0.15 m here, the three
+      // anchors nearly on a line).
+      const double var = mobile.positionVariance(uwb::kMobileAnchorBase + 1);
+      std::printf("[ MOBILE   ] still node's position std %.3f m\n", std::sqrt(var));
+      EXPECT_GT(var, 0.01 * 0.01);
+      EXPECT_LT(var, 0.2 * 0.2);
+      EXPECT_EQ(mobile.positionVariance(uwb::kMobileAnchorBase + 2), 0.0);
     } else {
       EXPECT_FALSE(anchor.has_value());
     }
@@ -336,11 +343,12 @@ TEST(MobileNode, StillNodeIsAnAnchorAMovingOneIsNot) {
 
 // The mobile-node paper's corridor (3 anchors, a person's tag, a slow cart that stops): the
 // cart as a temporary anchor lowers the error of least squares and of the CTRV EKF on the
-// paper's least-squares fixes (solver=ls). (On its default Gauss-Newton fixes the cart raises
-// uwb-ctrv-ekf's error here, 0.174 -> 0.289 m.)
+// paper's least-squares fixes (solver=ls) and on its default Gauss-Newton ones. The ranges to the
+// cart carry its position's scatter in their variance (positionVariance); without it the cart
+// raised the Gauss-Newton filter's error, 0.174 -> 0.289 m.
 TEST(MobileNode, TheCartHelpsInTheCorridor) {
   const data::Dataset ds = test::simulatedScenario("corridor", 1);
-  for (const char* m : {"uwb-ls", "uwb-chan", "uwb-ctrv-ekf:solver=ls"}) {
+  for (const char* m : {"uwb-ls", "uwb-chan", "uwb-ctrv-ekf:solver=ls", "uwb-ctrv-ekf"}) {
     const auto with = eval::evaluateMethod(ds, m, 1, 1);
     const auto without = eval::evaluateMethod(
         ds, std::string(m) + (std::strchr(m, ':') ? "," : ":") + "mobile=false", 1, 1);

@@ -103,6 +103,12 @@ void MobileAnchors::solve(Node& node) {
       variance_ ? Eigen::Vector2d::Constant(*variance_) : Eigen::Vector2d(4.0 * predicted);
   node.still = var.x() < limit.x() && var.y() < limit.y();
   node.mean = mean;
+  node.mean_var = 0.5 * var.sum();
+}
+
+double MobileAnchors::positionVariance(int id) const {
+  const auto it = nodes_.find(id - uwb::kMobileAnchorBase);
+  return it == nodes_.end() ? 0.0 : it->second.mean_var;
 }
 
 std::optional<uwb::Anchor> MobileAnchors::anchor(int id, double t) const {
@@ -175,6 +181,11 @@ std::optional<AcceptedRange> RangeFrontEnd::accept(const uwb::Range& range,
       !increments_.accept(range.anchor_id, range.t, range.range, range.tag_id))
     return fail(uwb::RejectReason::kIncrement);
   AcceptedRange accepted{range, anchor->position, *planar};
+  // A mobile node's position is known to its fixes' scatter only: the range carries it too.
+  if (mobile) {
+    const double sigma = params_.sigmaValue();
+    accepted.variance_scale = 1.0 + mobile_.positionVariance(range.anchor_id) / (sigma * sigma);
+  }
   if (nlos_ && !judge(accepted)) return fail(uwb::RejectReason::kNlosModel);
   return accepted;
 }

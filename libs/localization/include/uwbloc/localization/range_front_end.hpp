@@ -123,6 +123,11 @@ class MobileAnchors {
   void add(const uwb::Range& range, const std::vector<uwb::Anchor>& fixed);
   /// The node as an anchor at time t, when it is still.
   std::optional<uwb::Anchor> anchor(int id, double t) const;
+  /// The variance of a node's position: its fixes' scatter about their median over the window,
+  /// (1.4826 MAD)^2, averaged over x and y [m^2]; 0 for an unknown node. The scatter of one fix,
+  /// not of the median: the fixes' errors are correlated while the node stands still. The front
+  /// end adds it to the variance of each range to the node.
+  double positionVariance(int id) const;
 
  private:
   struct Node {
@@ -134,6 +139,7 @@ class MobileAnchors {
     size_t count = 0;
     bool still = false;
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    double mean_var = 0.0;  ///< positionVariance
   };
   void solve(Node& node);
   int window_;
