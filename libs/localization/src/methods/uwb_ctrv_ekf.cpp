@@ -60,9 +60,9 @@ bool UwbCtrvEkf::trackUntilMoved(const uwb::Fix& fix, double dt) {
 
 // The fit p(t) = p_end + u (t - t_end) over the latest fixes since the start, each axis alike, with
 // the noise variance the larger of the fixes' own and the fit's residual (fixes that jump between
-// two solutions leave a large one). Moved: at least 3 fixes and the fitted displacement over the
-// span beyond 3 sigma of its estimate. The state then takes p_end, |u| and u's direction, with
-// their first-order covariances (along u for the speed, across it over |u| for the course).
+// two solutions leave a large one). Moved: at least 3 fixes and the fitted speed |u| beyond 3
+// sigma of its estimate. The state then takes p_end, |u| and u's direction, with their
+// first-order covariances (along u for the speed, across it over |u| for the course).
 bool UwbCtrvEkf::startCourse() {
   const size_t n = pending_.size();
   if (n < 3) return false;
