@@ -104,6 +104,17 @@ bool UwbCtrvEkf::startCourse() {
 }
 
 bool UwbCtrvEkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
+  // A course whose variance has grown past a full turn (the tag at rest: course and turn rate
+  // unobservable, the turn rate spinning it) is no course: the position alone again until the
+  // fixes move (Plaza2's first 20 s at rest, after which the filter circled in place and refused
+  // the moving fixes).
+  if (!course_pending_ && p_(3, 3) > M_PI * M_PI) {
+    ++stats_.events["course_lost"];
+    x_.tail<3>().setZero();
+    course_pending_ = true;
+    pending_.clear();
+    pending_.push_back({0.0, x_.head<2>(), p_.topLeftCorner<2, 2>().trace() / 2.0});
+  }
   if (course_pending_) return trackUntilMoved(fix, dt);
   // §2.3 predict: x = f(x), P = F P F^T + Q (CTRV, ctrvPredict).
   Eigen::Matrix<double, 5, 5> f, q;

@@ -3,11 +3,12 @@
 // (ctrvPredict, motion_models.hpp), measuring the per-epoch fix (H = [I 0], R the fix's
 // covariance), behind the range front end's increment-queue gate (§2.1, on by default: `iq`).
 // The fix is Gauss-Newton's by default; the paper's least squares (§2.2, solver=ls) left the
-// heading swinging with its lateral errors (Hanyang LOS A1 1.909 against 1.330 m, Plaza2 14.1
-// against 3.2 m). It starts from the first consistent fix at rest, with the start pose's heading
-// when the run has one; without one, and at every restart, the speed and course come from a
-// straight-line fit of the fixes once they have moved (startCourse). The update is the toolkit's
-// (innovation, chi-square gate, Joseph form).
+// heading swinging with its lateral errors (Hanyang LOS A1 1.909 against 1.330 m, Plaza2 9.2
+// against 2.6 m). It starts from the first consistent fix at rest, with the start pose's heading
+// when the run has one; without one, at every restart, and when the course's variance has grown
+// past a full turn, the speed and course come from a straight-line fit of the fixes once they
+// have moved (startCourse). The update is the toolkit's (innovation, chi-square gate, Joseph
+// form).
 #pragma once
 
 #include <Eigen/Core>
