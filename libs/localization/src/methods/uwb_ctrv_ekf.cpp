@@ -90,7 +90,7 @@ bool UwbCtrvEkf::startCourse() {
   p_.setZero();
   p_.topLeftCorner<2, 2>() = end_var * Eigen::Matrix2d::Identity();
   p_(2, 2) = u_var;
-  p_(3, 3) = std::min(u_var / (speed * speed), M_PI * M_PI);
+  p_(3, 3) = u_var / (speed * speed);  // below 1/9: the speed is beyond 3 sigma
   // cov(p_end, u) per axis = var (t_end - t_mean) / stt, projected on along and across.
   const double pu = var * (t_end - t_mean) / stt;
   p_.block<2, 1>(0, 2) = pu * along;
