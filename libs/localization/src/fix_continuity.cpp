@@ -16,6 +16,8 @@ const char* toString(Continuity c) {
       return "fix_unreachable";
     case Continuity::kRestart:
       return "fix_continuity_restart";
+    case Continuity::kTwoRanges:
+      return "two_ranges_tracked";
   }
   return "unknown";
 }
@@ -37,6 +39,31 @@ double largestStd(const Eigen::Matrix2d& cov) {
 }
 }  // namespace
 
+uwb::Fix FixContinuity::candidateAt(const std::vector<uwb::PlanarRange>& ranges,
+                                    const Eigen::Vector2d& p) const {
+  uwb::Fix f = uwb::fixAt(ranges, p);
+  if (f.ok() || ranges.size() != 2 || !p.allFinite()) return f;
+  // Two circles that only touch, or miss each other: the tag near the line between their anchors,
+  // known along it by the ranges. Across it, y off the line lengthens the ranges r_a and r_b by
+  // y^2 / 2r each to second order, which their sum (at most D, the anchors' distance) leaves
+  // within its 3 sigma: y^2 <= 3 sigma_sum 2 r_a r_b / (r_a + r_b), taken as y's 3 sigma.
+  const Eigen::Vector2d d = ranges[1].anchor - ranges[0].anchor;
+  const double ra = std::max(ranges[0].range, params_.floor);
+  const double rb = std::max(ranges[1].range, params_.floor);
+  if (!(d.norm() > 1e-6)) return f;
+  const Eigen::Vector2d along = d.normalized();
+  const Eigen::Vector2d across(-along.y(), along.x());
+  const double var_sum = std::pow(ranges[0].sigma, 2) + std::pow(ranges[1].sigma, 2);
+  const double y2 = 3.0 * std::sqrt(var_sum) * 2.0 * ra * rb / (ra + rb);
+  f.covariance = 0.5 * var_sum * along * along.transpose() + y2 / 9.0 * across * across.transpose();
+  f.status = uwb::FixStatus::kOk;
+  return f;
+}
+
+void FixContinuity::setAccelPsd(double q) {
+  if (std::isfinite(q) && q > 0.0) params_.accel_psd = q;
+}
+
 void FixContinuity::raiseMaxSpeed(double v) {
   if (std::isfinite(v)) params_.max_speed = std::max(params_.max_speed, v);
 }
@@ -44,14 +71,94 @@ void FixContinuity::raiseMaxSpeed(double v) {
 bool FixContinuity::reachable(double t, const uwb::Fix& fix, bool own_std,
                               const Eigen::Vector2d& offset) const {
   if (!last_) return true;
-  const double reach = params_.floor + params_.max_speed * std::max(0.0, t - last_t_) +
+  const double dt = std::max(0.0, t - last_t_);
+  const Eigen::Vector2d p = fix.position + offset;
+  const double reach = params_.floor + params_.max_speed * dt +
                        3.0 * ((own_std ? largestStd(fix.covariance) : 0.0) + last_std_);
-  return (fix.position + offset - *last_).norm() <= reach;
+  if ((p - *last_).norm() > reach) return false;
+  if (!velocity_ || dt > params_.velocity_span) return true;
+  Eigen::Vector4d x;
+  Eigen::Matrix4d P;
+  predict(t, x, P);
+  Eigen::Matrix2d S =
+      P.topLeftCorner<2, 2>() + std::pow(params_.floor / 3.0, 2) * Eigen::Matrix2d::Identity();
+  if (own_std && fix.covariance.allFinite()) S += fix.covariance;
+  const Eigen::Vector2d nu = p - x.head<2>();
+  return nu.dot(S.ldlt().solve(nu)) <= params_.gate;
+}
+
+void FixContinuity::predict(double t, Eigen::Vector4d& x, Eigen::Matrix4d& P) const {
+  const double dt = std::max(0.0, t - last_t_);
+  Eigen::Matrix4d F = Eigen::Matrix4d::Identity();
+  F(0, 2) = F(1, 3) = dt;
+  // White acceleration of density q.
+  const double q = params_.accel_psd;
+  Eigen::Matrix4d Q = Eigen::Matrix4d::Zero();
+  for (int i = 0; i < 2; ++i) {
+    Q(i, i) = q * std::pow(dt, 3) / 3.0;
+    Q(i, i + 2) = Q(i + 2, i) = q * dt * dt / 2.0;
+    Q(i + 2, i + 2) = q * dt;
+  }
+  x = F * track_;
+  P = F * track_cov_ * F.transpose() + Q;
+}
+
+bool FixContinuity::doubtedRangesAgree(double t, const std::vector<uwb::PlanarRange>& ranges,
+                                       const Eigen::Vector2d& offset) const {
+  if (doubted_.empty() || !velocity_ || t - last_t_ > params_.velocity_span) return true;
+  Eigen::Vector4d x;
+  Eigen::Matrix4d P;
+  predict(t, x, P);
+  const Eigen::Vector2d tag = x.head<2>() - offset;
+  for (const auto& r : ranges) {
+    const bool doubted = std::any_of(doubted_.begin(), doubted_.end(),
+                                     [&](const auto& a) { return (a - r.anchor).norm() < 1e-9; });
+    const Eigen::Vector2d d = tag - r.anchor;
+    if (!doubted || !(d.norm() > 1e-9)) continue;
+    const Eigen::Vector2d u = d.normalized();
+    const double var =
+        r.sigma * r.sigma + u.dot(P.topLeftCorner<2, 2>() * u) + std::pow(params_.floor / 3.0, 2);
+    const double e = r.range - d.norm();
+    if (e * e > 9.0 * var) return false;
+  }
+  return true;
+}
+
+Eigen::Vector2d FixContinuity::predicted(double t) const {
+  if (!last_) return Eigen::Vector2d::Zero();
+  if (!velocity_ || t - last_t_ > params_.velocity_span) return *last_;
+  Eigen::Vector4d x;
+  Eigen::Matrix4d P;
+  predict(t, x, P);
+  return x.head<2>();
 }
 
 void FixContinuity::keep(double t, const uwb::Fix& fix, const Eigen::Vector2d& offset) {
+  const Eigen::Vector2d p = fix.position + offset;
+  Eigen::Matrix2d R = std::pow(params_.floor / 3.0, 2) * Eigen::Matrix2d::Identity();
+  if (fix.covariance.allFinite()) R += fix.covariance;
+  if (params_.track && last_ && t - last_t_ <= params_.velocity_span) {
+    // The track's update with the kept fix.
+    Eigen::Vector4d x;
+    Eigen::Matrix4d P;
+    predict(t, x, P);
+    const Eigen::Matrix2d S = P.topLeftCorner<2, 2>() + R;
+    const Eigen::Matrix<double, 4, 2> K = P.leftCols<2>() * S.inverse();
+    track_ = x + K * (p - x.head<2>());
+    track_cov_ = P - K * P.topRows<2>();
+    track_cov_ = 0.5 * (track_cov_ + track_cov_.transpose()).eval();
+    velocity_ = true;
+  } else {
+    // A new track: the fix, and any velocity up to the fastest plausible.
+    track_ << p, 0.0, 0.0;
+    track_cov_.setZero();
+    track_cov_.topLeftCorner<2, 2>() = R;
+    track_cov_.bottomRightCorner<2, 2>() =
+        params_.max_speed * params_.max_speed * Eigen::Matrix2d::Identity();
+    velocity_ = false;
+  }
   last_t_ = last_ ? std::max(last_t_, t) : t;
-  last_ = fix.position + offset;
+  last_ = p;
   last_std_ = largestStd(fix.covariance);
   unreachable_ = 0;
 }
@@ -74,14 +181,13 @@ std::optional<FixContinuity::Candidate> FixContinuity::bestReachable(
         std::vector<uwb::PlanarRange> subset;
         for (size_t i = 0; i < ranges.size(); ++i)
           if (fits(p, i)) in.push_back(static_cast<int>(i)), subset.push_back(ranges[i]);
-        const double distance = last_ ? (p + offset - *last_).norm() : 0.0;
+        const double distance = last_ ? (p + offset - predicted(t)).norm() : 0.0;
         if (in.size() + 1 < ranges.size() || in.size() < 2 ||
             (best && (in.size() < best->in.size() ||
                       (in.size() == best->in.size() && distance >= best_distance))))
           continue;
-        // A pair's intersection as a fix from the ranges it fits (none where the circles only
-        // touch: no position across the line between their anchors).
-        uwb::Fix f = uwb::fixAt(subset, p);
+        // A pair's intersection as a fix from the ranges it fits.
+        uwb::Fix f = candidateAt(subset, p);
         if (!f.ok() || !reachable(t, f, false, offset)) continue;
         // Three ranges or more: the method's own solver over them, when it stays reachable.
         if (subset.size() >= 3) {
@@ -98,8 +204,9 @@ FixContinuity::Checked FixContinuity::check(double t, const uwb::Fix& fix,
                                             const std::vector<uwb::PlanarRange>& ranges,
                                             const Solver& solve, const Eigen::Vector2d& offset) {
   Checked out;
-  if (reachable(t, fix, true, offset)) {
+  if (reachable(t, fix, true, offset) && doubtedRangesAgree(t, ranges, offset)) {
     keep(t, fix, offset);
+    doubted_.clear();
     out.fix = fix;
     return out;
   }
@@ -107,18 +214,47 @@ FixContinuity::Checked FixContinuity::check(double t, const uwb::Fix& fix,
     keep(t, c->fix, offset);
     out.fix = c->fix;
     out.outcome = Continuity::kExcluded;
+    doubted_.clear();
     for (size_t i = 0; i < ranges.size(); ++i)
-      if (std::find(c->in.begin(), c->in.end(), static_cast<int>(i)) == c->in.end())
+      if (std::find(c->in.begin(), c->in.end(), static_cast<int>(i)) == c->in.end()) {
         out.left_out.push_back(static_cast<int>(i));
+        doubted_.push_back(ranges[i].anchor);
+      }
     return out;
   }
   if (++unreachable_ >= params_.max_unreachable) {
+    last_.reset();  // a restart: no velocity from the position given up
+    doubted_.clear();
     keep(t, fix, offset);
     out.fix = fix;
     out.outcome = Continuity::kRestart;
     return out;
   }
   out.outcome = Continuity::kUnreachable;
+  return out;
+}
+
+FixContinuity::Checked FixContinuity::checkTwo(double t,
+                                               const std::vector<uwb::PlanarRange>& ranges,
+                                               const Eigen::Vector2d& offset) {
+  Checked out;
+  out.outcome = Continuity::kUnreachable;
+  if (!velocity_ || ranges.size() != 2 || t - last_t_ > params_.velocity_span) return out;
+  std::optional<uwb::Fix> best;
+  double best_distance = 0.0;
+  for (const auto& p : uwb::circleIntersections(ranges[0], ranges[1])) {
+    if (!p.allFinite()) continue;
+    const double distance = (p + offset - predicted(t)).norm();
+    if (best && distance >= best_distance) continue;
+    uwb::Fix f = candidateAt(ranges, p);
+    if (!f.ok() || !reachable(t, f, false, offset)) continue;
+    best = f;
+    best_distance = distance;
+  }
+  if (!best) return out;
+  keep(t, *best, offset);
+  out.fix = best;
+  out.outcome = Continuity::kTwoRanges;
   return out;
 }
 

@@ -243,6 +243,9 @@ void EpochUwbEstimator::learn(const EstimatorStatistics& learnt) {
   // The learnt path's speed, three times its RMS, where it exceeds the plausible one.
   if (learnt.mean_square_speed)
     continuity_.raiseMaxSpeed(3.0 * std::sqrt(*learnt.mean_square_speed));
+  // The continuity track's acceleration: twice the density the learnt path showed, so that its
+  // gate admits motion livelier than the first minute's.
+  if (learnt.estimated_accel_psd) continuity_.setAccelPsd(2.0 * *learnt.estimated_accel_psd);
 }
 
 std::optional<PoseEstimate> EpochUwbEstimator::step(const Event& event) {
@@ -269,6 +272,12 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver
                                                     bool continuity) {
   const uwb::Fix fix = multilaterate(solver, planar);
   if (!fix.ok()) {
+    // Two ranges give no fix, but the continuity track follows the intersection it predicts, so
+    // that the next fix is judged from a recent position (emitting it as a fix measured worse:
+    // Hanyang NLOS A1, uwb-kf 0.837 -> 0.900 m).
+    if (continuity && continuity_seeded_ && planar.size() == 2 &&
+        continuity_.checkTwo(epochTime(epoch), planar).fix)
+      ++stats_.events[toString(Continuity::kTwoRanges)];
     countRejection(std::string("epoch_") + uwb::toString(fix.status));
     return std::nullopt;
   }

@@ -294,7 +294,9 @@ std::vector<double> GraphSmoother::addRangeVertices(graph::RangeGraph& g) const 
   std::vector<double> fix_t;
   std::vector<Eigen::Vector2d> fix_xy;
   EpochBuffer epochs(AutoDouble{});
-  FixContinuity continuity({params_.front.iq_max_speed, params_.front.iq_floor});
+  FixContinuityParams continuity_params{params_.front.iq_max_speed, params_.front.iq_floor};
+  continuity_params.track = false;  // every method's learning start: the speed bound alone
+  FixContinuity continuity(continuity_params);
   if (context_.initial_pose && !ranges_.empty())
     continuity.seed(context_.initial_time,
                     tagFromRobot(*context_.initial_pose, ranges_.front().measurement.tag_on_robot));

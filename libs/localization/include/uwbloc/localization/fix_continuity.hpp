@@ -3,7 +3,11 @@
 // residual can tell; only the motion can. A fix the tag cannot have reached since the last kept
 // one (at the fastest plausible speed, with both fixes' uncertainty) is in doubt, and the reachable
 // position that the most of the epoch's ranges fit is used instead, leaving the others out: fault
-// exclusion by continuity.
+// exclusion by continuity. The kept fixes also feed a constant-velocity track (a Kalman filter
+// driven by white acceleration, its density the data's), and a fix must pass its gate too: at a
+// slow robot's pace the speed bound alone reaches metres around the last fix, far enough for a
+// wrong fix near the line of the two good anchors, where the mirror and the truth meet and the
+// good pair's intersection is known only along that line.
 #pragma once
 
 #include <Eigen/Core>
@@ -19,6 +23,12 @@ struct FixContinuityParams {
   double max_speed = 2.0;   ///< fastest plausible tag speed [m/s]
   double floor = 0.3;       ///< distance always reachable, and a range's fit tolerance [m]
   int max_unreachable = 5;  ///< epochs in a row with nothing reachable before a restart
+  /// The track's white acceleration density [m^2/s^3]; the range front end sets twice the
+  /// learnt path's (EpochUwbEstimator::learn).
+  double accel_psd = 0.33;
+  double velocity_span = 3.0;  ///< a gap [s] after which the track forgets its velocity
+  double gate = 13.8;          ///< the track's chi-square gate (2 dof, 0.999)
+  bool track = true;           ///< false: the speed bound alone, from the last kept position
 };
 
 /// Why a fix was kept, changed or refused.
@@ -27,6 +37,7 @@ enum class Continuity {
   kExcluded,     ///< replaced by a reachable position that leaves some ranges out
   kUnreachable,  ///< refused: nothing the ranges allow is reachable
   kRestart,      ///< taken as it is after max_unreachable refusals in a row
+  kTwoRanges,    ///< two ranges only: the track follows the intersection it predicts
 };
 
 const char* toString(Continuity c);
@@ -45,6 +56,9 @@ class FixContinuity {
   /// A known position at time t (the start pose's tag); the first fix is then checked too.
   void seed(double t, const Eigen::Vector2d& position);
 
+  /// The track's white acceleration density, as learnt from the data.
+  void setAccelPsd(double q);
+
   /// A speed the data showed (the learnt path's); only raises the one in force.
   void raiseMaxSpeed(double v);
 
@@ -60,12 +74,32 @@ class FixContinuity {
   Checked check(double t, const uwb::Fix& fix, const std::vector<uwb::PlanarRange>& ranges,
                 const Solver& solve, const Eigen::Vector2d& offset = Eigen::Vector2d::Zero());
 
+  /// An epoch of two ranges, which no solver resolves alone: while the track has a velocity, the
+  /// intersection of their circles nearest the predicted position, when reachable (outcome
+  /// kTwoRanges), else nothing (kUnreachable, not counted towards a restart).
+  Checked checkTwo(double t, const std::vector<uwb::PlanarRange>& ranges,
+                   const Eigen::Vector2d& offset = Eigen::Vector2d::Zero());
+
  private:
   /// Within floor + max_speed dt + 3 (the fix's largest std, with `own_std`, + the last kept
-  /// one's) of the last kept position. A candidate is judged without its own std: a pair's
-  /// intersection near the line through its anchors has a large one, and would reach anywhere.
+  /// one's) of the last kept position and, once the track has a velocity, inside its gate (the
+  /// predicted covariance + (floor / 3)^2, + the fix's own with `own_std`). A candidate is judged
+  /// without its own std: a pair's intersection near the line through its anchors has a large
+  /// one, and would reach anywhere.
   bool reachable(double t, const uwb::Fix& fix, bool own_std, const Eigen::Vector2d& offset) const;
   void keep(double t, const uwb::Fix& fix, const Eigen::Vector2d& offset);
+  /// A candidate position as a fix from the ranges it fits (`uwb::fixAt`); two whose circles only
+  /// touch or miss give the point on the line between their anchors, uncertain across it.
+  uwb::Fix candidateAt(const std::vector<uwb::PlanarRange>& ranges, const Eigen::Vector2d& p) const;
+  /// Whether the ranges of the anchors left out at the last kept epoch agree with the track's
+  /// prediction again (within 3 sigma: range, prediction and floor / 3): a fault persists, and a
+  /// range that is still recovering from one would pull a fix that the gate lets in.
+  bool doubtedRangesAgree(double t, const std::vector<uwb::PlanarRange>& ranges,
+                          const Eigen::Vector2d& offset) const;
+  /// The track (position, velocity) and its covariance predicted to t.
+  void predict(double t, Eigen::Vector4d& x, Eigen::Matrix4d& P) const;
+  /// Where the tag is expected at t: the last kept position, or the track's prediction.
+  Eigen::Vector2d predicted(double t) const;
   /// The best reachable candidate position, with the indices of the ranges it fits.
   struct Candidate {
     uwb::Fix fix;
@@ -78,6 +112,12 @@ class FixContinuity {
   std::optional<Eigen::Vector2d> last_;
   double last_t_ = 0.0;
   double last_std_ = 0.0;  ///< the last kept fix's largest std [m]
+  // The constant-velocity track of the kept fixes: x = (position, velocity); with a velocity once
+  // two fixes have been kept within velocity_span of each other.
+  Eigen::Vector4d track_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d track_cov_ = Eigen::Matrix4d::Identity();
+  bool velocity_ = false;
+  std::vector<Eigen::Vector2d> doubted_;  ///< anchors left out at the last kept epoch
   int unreachable_ = 0;
 };
 
