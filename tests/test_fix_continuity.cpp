@@ -198,3 +198,33 @@ TEST(FixContinuity, ARangeLeftOutStaysOutUntilItAgreesWithTheTrackAgain) {
     }
   }
 }
+
+TEST(FixContinuity, EveryRangeMustAgreeWhenTheSolverStartsFromTheLastPose) {
+  // A solver started from the last pose that a wrong range pulls only 0.2 m (uwb-multitag's
+  // Huber fit): the fix is inside the track's gate; only the range itself tells.
+  auto run = [](bool every_range) {
+    loc::FixContinuityParams params;
+    params.accel_psd = 0.2;
+    params.every_range = every_range;
+    loc::FixContinuity continuity(params);
+    loc::FixContinuity::Checked last;
+    for (int k = 0; k <= 5; ++k) {
+      const Eigen::Vector2d tag(2.0 + 0.4 * k, 2.0);
+      auto ranges = epoch(tag, false);
+      uwb::Fix fix = uwb::solveGaussNewton(ranges);
+      if (k == 5) {
+        ranges[0].range -= 3.0;
+        fix.position += Eigen::Vector2d(-0.2, 0.0);
+      }
+      last = continuity.check(k, fix, ranges, gaussNewton);
+    }
+    return last;
+  };
+  const auto judged = run(true);
+  EXPECT_EQ(judged.outcome, loc::Continuity::kExcluded);
+  ASSERT_EQ(judged.left_out.size(), 1u);
+  EXPECT_EQ(judged.left_out[0], 0);
+  ASSERT_TRUE(judged.fix);
+  EXPECT_LT((judged.fix->position - Eigen::Vector2d(4.0, 2.0)).norm(), 0.05);
+  EXPECT_EQ(run(false).outcome, loc::Continuity::kAsIs);
+}

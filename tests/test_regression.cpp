@@ -58,10 +58,10 @@ TEST(MrptDemo, ContinuityLeavesOutBeaconOnesMirrorRanges) {
   std::printf("%s", eval::formatTable(ds, all).c_str());
   for (size_t i = 0; i < 2; ++i)  // the mirror, without the check
     EXPECT_GT(all[i].metrics.rmse_2d, 3.0) << all[i].spec;
-  // The continuity track carries uwb-gn and uwb-kf across the line of beacons 2 and 3 (0.72 and
-  // 0.80 m with the speed bound alone); uwb-multitag, whose epochs follow its own pose, less so.
-  for (size_t i = 2; i < 4; ++i) EXPECT_LT(all[i].metrics.rmse_2d, 0.25) << all[i].spec;
-  EXPECT_LT(all[4].metrics.rmse_2d, 0.8) << all[4].spec;
+  // The continuity track keeps beacon 1's short ranges out near the line of beacons 2 and 3
+  // (uwb-gn and uwb-kf 0.72 and 0.80 m with the speed bound alone; uwb-multitag 0.377 m when only
+  // the ranges already left out are judged against the track).
+  for (size_t i = 2; i < 5; ++i) EXPECT_LT(all[i].metrics.rmse_2d, 0.25) << all[i].spec;
   EXPECT_LT(all[5].metrics.rmse_2d, 0.2);
   for (size_t i = 2; i < 5; ++i) {
     EXPECT_GT(all[i].metrics.coverage, 0.9) << all[i].spec;

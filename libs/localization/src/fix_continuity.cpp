@@ -60,6 +60,8 @@ uwb::Fix FixContinuity::candidateAt(const std::vector<uwb::PlanarRange>& ranges,
   return f;
 }
 
+void FixContinuity::checkEveryRange() { params_.every_range = true; }
+
 void FixContinuity::setAccelPsd(double q) {
   if (std::isfinite(q) && q > 0.0) params_.accel_psd = q;
 }
@@ -105,7 +107,9 @@ void FixContinuity::predict(double t, Eigen::Vector4d& x, Eigen::Matrix4d& P) co
 
 bool FixContinuity::doubtedRangesAgree(double t, const std::vector<uwb::PlanarRange>& ranges,
                                        const Eigen::Vector2d& offset) const {
-  if (doubted_.empty() || !velocity_ || t - last_t_ > params_.velocity_span) return true;
+  if ((doubted_.empty() && !params_.every_range) || !velocity_ ||
+      t - last_t_ > params_.velocity_span)
+    return true;
   Eigen::Vector4d x;
   Eigen::Matrix4d P;
   predict(t, x, P);
@@ -114,7 +118,7 @@ bool FixContinuity::doubtedRangesAgree(double t, const std::vector<uwb::PlanarRa
     const bool doubted = std::any_of(doubted_.begin(), doubted_.end(),
                                      [&](const auto& a) { return (a - r.anchor).norm() < 1e-9; });
     const Eigen::Vector2d d = tag - r.anchor;
-    if (!doubted || !(d.norm() > 1e-9)) continue;
+    if ((!doubted && !params_.every_range) || !(d.norm() > 1e-9)) continue;
     const Eigen::Vector2d u = d.normalized();
     const double var =
         r.sigma * r.sigma + u.dot(P.topLeftCorner<2, 2>() * u) + std::pow(params_.floor / 3.0, 2);

@@ -29,6 +29,10 @@ struct FixContinuityParams {
   double velocity_span = 3.0;  ///< a gap [s] after which the track forgets its velocity
   double gate = 13.8;          ///< the track's chi-square gate (2 dof, 0.999)
   bool track = true;           ///< false: the speed bound alone, from the last kept position
+  /// Every range, not only those left out, must agree with the track's prediction for a fix to
+  /// be taken as it is (a solver started from the last pose, whose fix a wrong range pulls only
+  /// part of the way: uwb-multitag).
+  bool every_range = false;
 };
 
 /// Why a fix was kept, changed or refused.
@@ -55,6 +59,9 @@ class FixContinuity {
 
   /// A known position at time t (the start pose's tag); the first fix is then checked too.
   void seed(double t, const Eigen::Vector2d& position);
+
+  /// Sets every_range.
+  void checkEveryRange();
 
   /// The track's white acceleration density, as learnt from the data.
   void setAccelPsd(double q);
@@ -91,7 +98,8 @@ class FixContinuity {
   /// A candidate position as a fix from the ranges it fits (`uwb::fixAt`); two whose circles only
   /// touch or miss give the point on the line between their anchors, uncertain across it.
   uwb::Fix candidateAt(const std::vector<uwb::PlanarRange>& ranges, const Eigen::Vector2d& p) const;
-  /// Whether the ranges of the anchors left out at the last kept epoch agree with the track's
+  /// Whether the ranges of the anchors left out at the last kept epoch (every range, with
+  /// every_range) agree with the track's
   /// prediction again (within 3 sigma: range, prediction and floor / 3): a fault persists, and a
   /// range that is still recovering from one would pull a fix that the gate lets in.
   bool doubtedRangesAgree(double t, const std::vector<uwb::PlanarRange>& ranges,

@@ -281,6 +281,8 @@ class EpochUwbEstimator : public UwbEstimator {
                                            const std::optional<Eigen::Vector2d>& seed);
   /// The start pose, when the run has one.
   const std::optional<Eigen::Vector3d>& initialPose() const { return initial_pose_; }
+  /// The continuity check judges every range against its track (FixContinuityParams::every_range).
+  void checkEveryRange() { continuity_.checkEveryRange(); }
 
  private:
   /// One event after the learning start.
