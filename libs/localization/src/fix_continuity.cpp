@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/localization/kalman/kalman.hpp"
+
 namespace uwbloc::loc {
 
 const char* toString(Continuity c) {
@@ -90,19 +92,9 @@ bool FixContinuity::reachable(double t, const uwb::Fix& fix, bool own_std,
 }
 
 void FixContinuity::predict(double t, Eigen::Vector4d& x, Eigen::Matrix4d& P) const {
-  const double dt = std::max(0.0, t - last_t_);
-  Eigen::Matrix4d F = Eigen::Matrix4d::Identity();
-  F(0, 2) = F(1, 3) = dt;
-  // White acceleration of density q.
-  const double q = params_.accel_psd;
-  Eigen::Matrix4d Q = Eigen::Matrix4d::Zero();
-  for (int i = 0; i < 2; ++i) {
-    Q(i, i) = q * std::pow(dt, 3) / 3.0;
-    Q(i, i + 2) = Q(i + 2, i) = q * dt * dt / 2.0;
-    Q(i + 2, i + 2) = q * dt;
-  }
-  x = F * track_;
-  P = F * track_cov_ * F.transpose() + Q;
+  x = track_;
+  P = track_cov_;
+  kalman::predictConstantVelocity(x, P, std::max(0.0, t - last_t_), params_.accel_psd, 0.0);
 }
 
 bool FixContinuity::doubtedRangesAgree(double t, const std::vector<uwb::PlanarRange>& ranges,
