@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <stdexcept>
 
 #include "kidnap.hpp"
 #include "simulated_scenario.hpp"
@@ -502,10 +503,11 @@ TEST(Registry, ErrorsNameTheProblem) {
   EXPECT_NE(message("uwb-ins-ickf:k0=6").find("'k1' must exceed 'k0'"), std::string::npos);
 }
 
-TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
-  // Four anchors answering in turn, one range every 0.13 s (a round takes 0.52 s): a fixed
-  // 0.15 s window never holds three anchors; window=auto takes the span from the data.
-  data::Dataset ds = test::makeSquareLoop(4, 0.05, 60.0);
+namespace {
+
+// The square loop's ground truth with its ranges replaced: four anchors answering in turn, one
+// noise-free range every 0.13 s over the first 60 s (a round takes 0.52 s).
+data::Dataset oneAnchorAtATime(data::Dataset ds) {
   ds.events.clear();
   const Eigen::Vector3d tag(0.1, 0.0, 1.0);
   for (int k = 0; 0.13 * k <= 60.0; ++k) {
@@ -514,12 +516,20 @@ TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
     r.anchor_id = ds.anchors[static_cast<size_t>(k % 4)].id;
     r.tag_on_robot = tag;
     const auto truth = eval::interpolateGroundTruth(ds.ground_truth, r.t, 1.0);
-    ASSERT_TRUE(truth.has_value());
+    if (!truth) throw std::runtime_error("oneAnchorAtATime: no ground truth at a range");
     r.range = uwb::predictRange(*truth, tag, ds.anchors[static_cast<size_t>(k % 4)].position);
     ds.events.emplace_back(r);
   }
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
+  return ds;
+}
+
+}  // namespace
+
+TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
+  // A fixed 0.15 s window never holds three anchors; window=auto takes the span from the data.
+  const data::Dataset ds = oneAnchorAtATime(test::makeSquareLoop(4, 0.05, 60.0));
   const auto fixed = eval::evaluateMethod(ds, "uwb-gn:window=0.15", 1, 1);
   const auto automatic = eval::evaluateMethod(ds, "uwb-gn", 1, 1);
   std::printf(
@@ -529,6 +539,31 @@ TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
   EXPECT_EQ(fixed.metrics.steps, 0);
   EXPECT_GT(automatic.metrics.coverage, 0.9);
   EXPECT_LT(automatic.metrics.rmse_2d, 0.4);  // the tag moves 0.26 m during one round
+}
+
+// A fix from ranges taken one anchor at a time stands for the tag at their mean time: four
+// ranges 0.13 s apart are stamped at the second and third's midpoint, not at the last.
+TEST(EpochWindow, AnEpochIsStampedAtTheMeanTimeOfItsRanges) {
+  std::vector<loc::AcceptedRange> epoch(4);
+  for (size_t i = 0; i < epoch.size(); ++i)
+    epoch[i].measurement.t = 1.7e9 + 0.13 * static_cast<double>(i);
+  EXPECT_NEAR(loc::epochTime(epoch), 1.7e9 + 0.195, 1e-6);
+  epoch.resize(1);
+  EXPECT_EQ(loc::epochTime(epoch), 1.7e9);
+}
+
+// The same one-anchor-at-a-time ranges, noise-free, from a tag driving the square at 3 m/s (CMU
+// Plaza2's speed): stamped at the last range, every fix lagged 0.195 s (rmse 0.598 m); at the mean
+// time, 0.241 m.
+TEST(EpochWindow, FastTagFixesDoNotLagTheirRanges) {
+  data::Dataset fast = test::makeSquareLoop(4, 0.05, 360.0);
+  for (auto& p : fast.ground_truth) p.t /= 6.0;  // 0.5 m/s -> 3 m/s
+  const data::Dataset ds = oneAnchorAtATime(fast);
+  const auto gn = eval::evaluateMethod(ds, "uwb-gn", 1, 1);
+  std::printf("[ EPOCHS   ] tag at 3 m/s, one anchor every 0.13 s: uwb-gn rmse %.3f m\n",
+              gn.metrics.rmse_2d);
+  EXPECT_GT(gn.metrics.coverage, 0.9);
+  EXPECT_LT(gn.metrics.rmse_2d, 0.3);
 }
 
 TEST(Registry, ParametersOutsideTheirLimitsAreErrors) {
@@ -565,10 +600,14 @@ TEST(Registry, EveryDefaultIsInsideItsLimits) {
 
 // The adaptive filters coupled tightly (mode=ranges: a Sage-Husa statistic per anchor on each
 // range's innovation) run on the room with full coverage and no NaN; their accuracy there is
-// printed and bounded like the other methods'.
+// printed and bounded like the other methods'. The tight IAKF is not stable here (its divergence
+// test fires 557-594 times in the 74 s, and its per-anchor R sits at the floor): its RMSE moves by
+// half a metre with changes of 1e-9 in the learnt sigma (1.092 m, and 1.577 m once the epochs
+// of the learning start's graph were stamped at their mean time) and lies at 1.365-1.456 m with
+// sigma fixed anywhere in 0.1386-0.139 m. Its bound is set above that spread, not on one draw.
 TEST(AdaptiveKalman, TightlyCoupledModeRunsOnTheRoom) {
   const std::map<std::string, double> bound = {{"uwb-akf:mode=ranges", 0.45},
-                                               {"uwb-iakf:mode=ranges", 1.3}};
+                                               {"uwb-iakf:mode=ranges", 1.7}};
   for (const auto& [m, rmse_bound] : bound) {
     const auto run = eval::runMethod(room(), m, 1);
     const auto metrics = eval::computeMetrics(eval::associate(run.trajectory, room().ground_truth),

@@ -373,9 +373,11 @@ std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, 
 }
 
 double epochTime(const std::vector<AcceptedRange>& epoch) {
-  double t = epoch.front().measurement.t;
-  for (const auto& r : epoch) t = std::max(t, r.measurement.t);
-  return t;
+  // Relative to the first stamp, so that the sum of epoch stamps ~1e9 s loses no precision.
+  const double t0 = epoch.front().measurement.t;
+  double offset = 0.0;
+  for (const auto& r : epoch) offset += r.measurement.t - t0;
+  return t0 + offset / static_cast<double>(epoch.size());
 }
 
 std::optional<uwb::Fix> consistentFix(const std::vector<AcceptedRange>& epoch, double sigma,
