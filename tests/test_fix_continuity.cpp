@@ -124,7 +124,9 @@ std::pair<double, int> crossTheLine(const loc::FixContinuityParams& params, doub
     loc::FixContinuity::Checked checked;
     if (k == 4) {
       checked = continuity.checkTwo(t, {ranges[1], ranges[2]});
-      if (params.track) EXPECT_EQ(checked.outcome, loc::Continuity::kTwoRanges);
+      if (params.track) {
+        EXPECT_EQ(checked.outcome, loc::Continuity::kTwoRanges);
+      }
     } else {
       checked = continuity.check(t, uwb::solveGaussNewton(ranges), ranges, gaussNewton);
     }

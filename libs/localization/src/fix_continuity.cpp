@@ -107,10 +107,11 @@ bool FixContinuity::doubtedRangesAgree(double t, const std::vector<uwb::PlanarRa
   predict(t, x, P);
   const Eigen::Vector2d tag = x.head<2>() - offset;
   for (const auto& r : ranges) {
-    const bool doubted = std::any_of(doubted_.begin(), doubted_.end(),
-                                     [&](const auto& a) { return (a - r.anchor).norm() < 1e-9; });
+    const bool judged = params_.every_range ||
+                        std::any_of(doubted_.begin(), doubted_.end(),
+                                    [&](const auto& a) { return (a - r.anchor).norm() < 1e-9; });
     const Eigen::Vector2d d = tag - r.anchor;
-    if ((!doubted && !params_.every_range) || !(d.norm() > 1e-9)) continue;
+    if (!judged || !(d.norm() > 1e-9)) continue;
     const Eigen::Vector2d u = d.normalized();
     const double var =
         r.sigma * r.sigma + u.dot(P.topLeftCorner<2, 2>() * u) + std::pow(params_.floor / 3.0, 2);

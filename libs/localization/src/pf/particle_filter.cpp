@@ -198,7 +198,7 @@ void ParticleFilter::predict(const Eigen::Vector3d& delta) {
 void ParticleFilter::weight(const LogLikelihood& log_likelihood) {
   for (size_t i = 0; i < set_.size(); ++i) {
     const double l = log_likelihood(set_.x[i], set_.y[i], set_.theta[i]);
-    set_.log_w[i] += std::isfinite(l) ? l : -1e3;  // a non-finite likelihood counts as tiny
+    set_.log_w[i] += boundedLogLikelihood(l);
   }
 }
 

@@ -51,13 +51,7 @@ void LidarFieldMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stat
 void LidarFieldMeasurement::respreadOnPoorFit(ParticleFilter& pf, EstimatorStatistics& stats) {
   const double fit = field_.fitFraction(best_pose_.x(), best_pose_.y(), best_pose_.z(),
                                         0.5 * params_.field.max_dist);
-  constexpr long kWarmUp = 10;
-  if (respread_fits_ < kWarmUp || fit >= params_.lost_fit * respread_usual_) {
-    ++respread_fits_;
-    respread_usual_ +=
-        (fit - respread_usual_) / static_cast<double>(std::min(respread_fits_, 100L));
-    return;
-  }
+  if (!respread_level_.poor(fit, params_.lost_fit)) return;
   // Every k-th particle (the resampler leaves copies side by side, so each hypothesis keeps
   // some) is re-drawn uniformly in the box around the estimate, and weighed by this scan in
   // place of what it scored where it was. (Widening the box with each poor scan in a row, to
@@ -73,13 +67,12 @@ void LidarFieldMeasurement::respreadOnPoorFit(ParticleFilter& pf, EstimatorStati
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const double half_theta = params_.respread_theta * M_PI / 180.0;
   double best = field_.logLikelihood(best_pose_.x(), best_pose_.y(), best_pose_.z());
-  const auto finite = [](double v) { return std::isfinite(v) ? v : -1e3; };  // as pf.weight()
   for (size_t i = step - 1; i < ps.size() && i < scan_log_l_.size(); i += step) {
     ps.x[i] = e.mean.x() + half_xy * u(pf.rng());
     ps.y[i] = e.mean.y() + half_xy * u(pf.rng());
     ps.theta[i] = wrapAngle(e.mean.z() + half_theta * u(pf.rng()));
     const double l = field_.logLikelihood(ps.x[i], ps.y[i], ps.theta[i]);
-    ps.log_w[i] += finite(l) - finite(scan_log_l_[i]);
+    ps.log_w[i] += boundedLogLikelihood(l) - boundedLogLikelihood(scan_log_l_[i]);
     if (l > best) {
       best = l;
       best_pose_ = {ps.x[i], ps.y[i], ps.theta[i]};
@@ -102,14 +95,7 @@ void LidarFieldMeasurement::endEpoch(const PoseEstimate& est) {
     // particle still fits; after a kidnapping none does.
     const double fit = field_.fitFraction(best_pose_.x(), best_pose_.y(), best_pose_.z(),
                                           0.5 * params_.field.max_dist);
-    constexpr long kWarmUp = 10;
-    if (fits_ >= kWarmUp && fit < params_.lost_fit * usual_fit_) {
-      ++low_fit_streak_;
-    } else {
-      low_fit_streak_ = 0;
-      ++fits_;
-      usual_fit_ += (fit - usual_fit_) / static_cast<double>(std::min(fits_, 100L));
-    }
+    low_fit_streak_ = lost_level_.poor(fit, params_.lost_fit) ? low_fit_streak_ + 1 : 0;
   }
   if (params_.landmarks && has_scan_) {
     // Corners seen from the current estimate grow the landmark map.

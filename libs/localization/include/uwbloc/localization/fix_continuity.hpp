@@ -99,9 +99,9 @@ class FixContinuity {
   /// touch or miss give the point on the line between their anchors, uncertain across it.
   uwb::Fix candidateAt(const std::vector<uwb::PlanarRange>& ranges, const Eigen::Vector2d& p) const;
   /// Whether the ranges of the anchors left out at the last kept epoch (every range, with
-  /// every_range) agree with the track's
-  /// prediction again (within 3 sigma: range, prediction and floor / 3): a fault persists, and a
-  /// range that is still recovering from one would pull a fix that the gate lets in.
+  /// every_range) agree with the track's prediction again (within 3 sigma: range, prediction and
+  /// floor / 3): a fault persists, and a range that is still recovering from one would pull a
+  /// fix that the gate lets in.
   bool doubtedRangesAgree(double t, const std::vector<uwb::PlanarRange>& ranges,
                           const Eigen::Vector2d& offset) const;
   /// The track (position, velocity) and its covariance predicted to t.

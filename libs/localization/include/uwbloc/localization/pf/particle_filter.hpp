@@ -35,6 +35,9 @@ struct ParticleSet {
 /// Log-likelihood of the current measurement for particle i.
 using LogLikelihood = std::function<double(double x, double y, double theta)>;
 
+/// What a log-likelihood adds to a particle's log-weight: a non-finite one counts as tiny.
+inline double boundedLogLikelihood(double l) { return std::isfinite(l) ? l : -1e3; }
+
 /// Odometry motion model with MRPT-like noise (Thrun's sample_motion_model_odometry):
 /// the increment is split into rot1, trans, rot2, each perturbed with std
 ///   rot: alpha1 |rot| + alpha2 trans,   trans: alpha3 trans + alpha4 (|rot1| + |rot2|)

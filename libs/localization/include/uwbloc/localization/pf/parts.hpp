@@ -8,6 +8,7 @@
 // A registry entry chooses the parts; every option is an enum parsed once, when it is built.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <deque>
 #include <functional>
@@ -316,14 +317,29 @@ class LidarFieldMeasurement final : public EpochMeasurement {
   /// Re-draws a share of the particles when the scan fits them poorly (see `respread`).
   void respreadOnPoorFit(ParticleFilter& pf, EstimatorStatistics& stats);
 
-  double usual_fit_ = 0.0;  ///< running mean of the scans' fit while tracking
-  long fits_ = 0;           ///< scans in that mean
-  /// The same mean for the re-spread, built from the first scan on (no hold-off after a start:
-  /// a cloud that locks onto a wrong heading does so while it is still converging).
-  double respread_usual_ = 0.0;
-  long respread_fits_ = 0;
+  /// The scans' usual fit: a running mean (over the last 100 at most) of the fits judged not
+  /// poor, the first 10 only building it.
+  class FitLevel {
+   public:
+    /// Whether `fit` is below `ratio` x the usual level; a fit that is not joins the mean.
+    bool poor(double fit, double ratio) {
+      constexpr long kWarmUp = 10;
+      if (n_ >= kWarmUp && fit < ratio * mean_) return true;
+      ++n_;
+      mean_ += (fit - mean_) / static_cast<double>(std::min(n_, 100L));
+      return false;
+    }
+
+   private:
+    double mean_ = 0.0;
+    long n_ = 0;
+  };
+  FitLevel lost_level_;  ///< the lost test's, built after each start's hold-off
+  /// The re-spread's, built from the first scan on (no hold-off after a start: a cloud that
+  /// locks onto a wrong heading does so while it is still converging).
+  FitLevel respread_level_;
   std::vector<double> scan_log_l_;  ///< each particle's scan log-likelihood this epoch
-  int low_fit_streak_ = 0;  ///< scans in a row below lost_fit * usual_fit_
+  int low_fit_streak_ = 0;          ///< poor scans in a row (lost_level_)
   int hold_off_ = 0;        ///< scans still to wait before judging the fit
   Eigen::Vector3d best_pose_ = Eigen::Vector3d::Zero();  ///< the epoch's best-fitting particle
   bool has_scan_ = false;
