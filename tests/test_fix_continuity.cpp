@@ -230,3 +230,33 @@ TEST(FixContinuity, EveryRangeMustAgreeWhenTheSolverStartsFromTheLastPose) {
   EXPECT_LT((judged.fix->position - Eigen::Vector2d(4.0, 2.0)).norm(), 0.05);
   EXPECT_EQ(run(false).outcome, loc::Continuity::kAsIs);
 }
+
+// The track's motion (what deskewRanges moves ranges along): none before a velocity, the kept
+// fixes' velocity after, and none again when that velocity is faster than the plausible speed.
+TEST(FixContinuity, TheTracksMotionIsItsVelocityWhilePlausible) {
+  loc::FixContinuityParams params;
+  params.max_speed = 2.0;
+  params.floor = 3.0;  // every fix below is reachable
+  loc::FixContinuity slow(params), fast(params);
+  for (int k = 0; k <= 10; ++k) {
+    const double t = 0.5 * k;
+    const auto at = [&](double speed) {
+      const Eigen::Vector2d tag(speed * t, 0.0);
+      return epoch(tag, false);
+    };
+    for (auto [c, speed] : {std::pair{&slow, 1.0}, std::pair{&fast, 4.0}}) {
+      const auto ranges = at(speed);
+      ASSERT_TRUE(c->check(t, uwb::solveGaussNewton(ranges), ranges, gaussNewton).fix);
+    }
+    if (k == 0) {
+      EXPECT_FALSE(slow.motion(t + 0.5)) << "one fix: no velocity yet";
+    }
+  }
+  const auto motion = slow.motion(5.5);
+  ASSERT_TRUE(motion);
+  EXPECT_NEAR(motion->velocity.x(), 1.0, 0.05);
+  EXPECT_NEAR(motion->velocity.y(), 0.0, 0.05);
+  EXPECT_NEAR(motion->position.x(), 5.5, 0.05);
+  EXPECT_FALSE(fast.motion(5.5)) << "4 m/s against a plausible 2 m/s";
+  EXPECT_FALSE(slow.motion(5.0 + params.velocity_span + 0.1)) << "the velocity is forgotten";
+}

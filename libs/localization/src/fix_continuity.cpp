@@ -121,6 +121,15 @@ bool FixContinuity::doubtedRangesAgree(double t, const std::vector<uwb::PlanarRa
   return true;
 }
 
+std::optional<FixContinuity::Motion> FixContinuity::motion(double t) const {
+  if (!last_ || !velocity_ || t - last_t_ > params_.velocity_span) return std::nullopt;
+  Eigen::Vector4d x;
+  Eigen::Matrix4d P;
+  predict(t, x, P);
+  if (x.tail<2>().norm() > params_.max_speed) return std::nullopt;
+  return Motion{x.head<2>(), x.tail<2>(), track_cov_.bottomRightCorner<2, 2>()};
+}
+
 Eigen::Vector2d FixContinuity::predicted(double t) const {
   if (!last_) return Eigen::Vector2d::Zero();
   if (!velocity_ || t - last_t_ > params_.velocity_span) return *last_;

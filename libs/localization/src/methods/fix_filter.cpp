@@ -5,7 +5,8 @@
 namespace uwbloc::loc {
 
 std::optional<PoseEstimate> FixFilter::onEpoch(const std::vector<AcceptedRange>& epoch) {
-  const auto checked = epochFix(fix_.solver, epoch, toPlanar(epoch, rangeSigma()), fix_.continuity);
+  const auto checked =
+      epochFix(fix_.solver, epoch, toPlanar(epoch, rangeSigma()), fix_.continuity, fix_.deskew);
   if (!checked) return std::nullopt;
   const uwb::Fix& fix = *checked;
   const double t = epochTime(epoch);

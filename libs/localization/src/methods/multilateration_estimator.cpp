@@ -16,7 +16,8 @@ MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
 
 std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
-  const auto checked = epochFix(solver_, epoch, toPlanar(epoch, rangeSigma()), params_.continuity);
+  const auto checked =
+      epochFix(solver_, epoch, toPlanar(epoch, rangeSigma()), params_.continuity, params_.deskew);
   if (!checked) return std::nullopt;
   const uwb::Fix& fix = *checked;
   const double t = epochTime(epoch);

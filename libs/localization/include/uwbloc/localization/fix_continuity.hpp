@@ -69,6 +69,20 @@ class FixContinuity {
   /// A speed the data showed (the learnt path's); only raises the one in force.
   void raiseMaxSpeed(double v);
 
+  /// The track predicted to t: position and velocity, and the velocity's covariance at the last
+  /// kept fix (without the prediction's white acceleration, which the learnt density sets for the
+  /// path's sharpest turns: on a square driven at 3 m/s it doubles the velocity's std, and
+  /// deskewRanges would keep a third of the skew, rmse 0.238 against 0.149 m).
+  struct Motion {
+    Eigen::Vector2d position;
+    Eigen::Vector2d velocity;
+    Eigen::Matrix2d velocity_cov;
+  };
+  /// The track's motion at t; nothing while it has no velocity (fewer than two kept fixes, or
+  /// the last one over velocity_span before t) or one faster than max_speed (noisy fixes far
+  /// from clustered anchors, Hanyang's at 37 m, swing it to 9-16 m/s).
+  std::optional<Motion> motion(double t) const;
+
   /// `fix` (status ok) from `ranges` at time t. When it is not reachable from the last kept
   /// position, each pair of ranges' circle intersections that is reachable and fits all the
   /// ranges but one at most (within max(3 sigma, floor): one fault at a time) is a candidate; the

@@ -206,6 +206,12 @@ inline constexpr const char* kContinuityHelp =
     "that fits every range but one (a wrong range among three can fit the mirror image "
     "exactly); 0: every fix as it is";
 
+/// The `deskew` key of the same methods.
+inline constexpr const char* kDeskewHelp =
+    "ranges taken one anchor at a time are moved to the epoch's mean time along the continuity "
+    "track's velocity before the fix (range + u.v dt; its variance + (u^T C_v u) dt^2); needs "
+    "continuity; 0: each range as taken";
+
 /// Groups ranges into epochs: an epoch closes when a range arrives more than `window` seconds
 /// after its first range, or a second range of an anchor-tag link already in it.
 ///
@@ -265,11 +271,14 @@ class EpochUwbEstimator : public UwbEstimator {
   /// correction, and keeps its own std (and q) to start its estimates from.
   virtual bool estimatesOwnNoise() const { return false; }
   /// The epoch's fix by `solver` from `planar` (toPlanar of the epoch); with `continuity`, checked
-  /// against the tag's reach since the last fix, from the start pose's tag (fix_continuity.hpp).
-  /// Nothing when the solver fails or the check refuses the epoch; each is counted.
+  /// against the tag's reach since the last fix, from the start pose's tag (fix_continuity.hpp),
+  /// and with `deskew` as well, from the ranges moved to the epoch's time along the track's
+  /// velocity (deskewRanges) once it has one. Nothing when the solver fails or the check refuses
+  /// the epoch; each is counted.
   std::optional<uwb::Fix> epochFix(MultilaterationSolver solver,
                                    const std::vector<AcceptedRange>& epoch,
-                                   const std::vector<uwb::PlanarRange>& planar, bool continuity);
+                                   std::vector<uwb::PlanarRange> planar, bool continuity,
+                                   bool deskew);
   /// `fix` of the epoch's tag from `planar`, checked for continuity (FixContinuity::check with
   /// `solve` and `offset`; the check starts from `seed`, the start pose's point, when the run has
   /// one). Its outcome and each range it leaves out are counted; no fix when it refuses the epoch.
@@ -313,6 +322,18 @@ std::vector<uwb::PlanarRange> toPlanar(const std::vector<AcceptedRange>& epoch, 
 /// mean time, not at the last range's (stamped there, the per-epoch fixes on CMU Plaza2, whose
 /// vehicle moves at 3.3 m/s, lagged 0.4 s, 1.4 m along the path).
 double epochTime(const std::vector<AcceptedRange>& epoch);
+
+/// `planar` (toPlanar of `epoch`) moved to time t along `motion`: a range taken dt = t - t_i
+/// before t, while the tag moved at velocity v, reads u.v dt less than it would at t (u: the unit
+/// vector from the anchor to the tag at t, to first order), so it gains u.v dt, and its variance
+/// gains (u^T C_v u) dt^2 for the velocity's uncertainty. v is the track's velocity shrunk by
+/// (1 - tr C_v / |v|^2), nothing when that is not positive. Ranges taken at t are unchanged.
+/// Without it, the fix from ranges one anchor at a time over a second is no point of the path: on
+/// CMU Plaza2 (3.3 m/s, a range every 0.23 s) each range is read up to 1.5 m from where the tag is
+/// at the epoch's time.
+std::vector<uwb::PlanarRange> deskewRanges(const std::vector<AcceptedRange>& epoch,
+                                           std::vector<uwb::PlanarRange> planar, double t,
+                                           const FixContinuity::Motion& motion);
 
 /// The Gauss-Newton fix a tracking filter starts from: the epoch's, when it solves and its
 /// residual norm is within `max_residual` (otherwise some range of the epoch is wrong).

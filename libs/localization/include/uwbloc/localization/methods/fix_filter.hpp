@@ -21,6 +21,7 @@ struct FixFilterParams {
   int max_gated = 5;           ///< consecutive gated fixes before re-initialising
   double init_residual = 0.5;  ///< largest residual norm of a fix used to (re)initialise [m]
   bool continuity = true;      ///< check each fix against the tag's reach (fix_continuity.hpp)
+  bool deskew = true;          ///< ranges moved to the epoch's time along the track (deskewRanges)
   RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
 
   template <class V>
@@ -33,6 +34,7 @@ struct FixFilterParams {
     v("max_gated", max_gated, "consecutive gated fixes before re-initialising");
     v("init_residual", init_residual, "largest residual norm of an initialising fix [m]");
     v("continuity", continuity, kContinuityHelp);
+    v("deskew", deskew, kDeskewHelp);
     learning.visit(v);
   }
 };

@@ -13,6 +13,7 @@ struct MultilaterationParams {
   RangeFrontEndParams front;  ///< range checks and gates
   AutoDouble epoch_window;    ///< ranges within this span form one epoch [s]; auto: the data's rate
   bool continuity = true;     ///< check each fix against the tag's reach (fix_continuity.hpp)
+  bool deskew = true;         ///< ranges moved to the epoch's time along the track (deskewRanges)
   RangeLearningParams learning;  ///< calib, calib_bias: the learning start (range_noise.hpp)
 
   template <class V>
@@ -21,6 +22,7 @@ struct MultilaterationParams {
     v("window", epoch_window,
       "epoch window [s], or auto (one round of ranges from the data's rate)");
     v("continuity", continuity, kContinuityHelp);
+    v("deskew", deskew, kDeskewHelp);
     learning.visit(v);
   }
 };
