@@ -305,6 +305,30 @@ TEST(RangeMixture, MeansPerAnchorPayForTheirParameters) {
   EXPECT_NEAR(fit->mixture.nlos_mean, 0.45, 0.15);
 }
 
+// The integrated autocorrelation time against its analytic values: 1 for white noise, and
+// (1 + a) / (1 - a) for an AR(1) series x_k = a x_{k-1} + w_k (a = 0.8: 9, a = 0.5: 3).
+TEST(RangeMixture, AutocorrelationTimeOfWhiteAndAr1Series) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const auto ar1 = [&](double a, size_t n) {
+    std::vector<double> x(n);
+    double v = 0.0;
+    for (auto& e : x) e = v = a * v + g(rng);
+    return x;
+  };
+  const double white = uwbloc::loc::integratedAutocorrelationTime(ar1(0.0, 100000));
+  const double half = uwbloc::loc::integratedAutocorrelationTime(ar1(0.5, 100000));
+  const double slow = uwbloc::loc::integratedAutocorrelationTime(ar1(0.8, 100000));
+  std::printf("[ TAU      ] white %.3f (1), AR(1) 0.5 %.3f (3), AR(1) 0.8 %.3f (9)\n", white, half,
+              slow);
+  EXPECT_NEAR(white, 1.0, 0.1);
+  EXPECT_NEAR(half, 3.0, 0.3);
+  EXPECT_NEAR(slow, 9.0, 0.9);
+  // Too short, or constant: 1.
+  EXPECT_EQ(uwbloc::loc::integratedAutocorrelationTime(ar1(0.8, 19)), 1.0);
+  EXPECT_EQ(uwbloc::loc::integratedAutocorrelationTime(std::vector<double>(100, 2.0)), 1.0);
+}
+
 TEST(RangeMixture, GaussianResidualsAndABiasedAnchorAreNotNlos) {
   // Gaussian noise: the mixture is not worth its parameters.
   EXPECT_FALSE(uwbloc::loc::fitRangeMixture(mixtureResiduals(0.0, 0.0, 7)));

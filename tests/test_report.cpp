@@ -129,7 +129,9 @@ TEST(Plots, EveryRejectedRangeIsKeptWithItsReasonForTheResidualPlot) {
       EXPECT_EQ(n, m.rejected.at(reason)) << m.spec << " " << reason;
       total += n;
     }
-    if (m.spec != "odom") EXPECT_GT(total, 0) << m.spec;  // the demo has zero ranges
+    if (m.spec != "odom") {
+      EXPECT_GT(total, 0) << m.spec;  // the demo has zero ranges
+    }
   }
   std::string caption;
   const auto files = eval::writePlots((test::scratchDir() / "p").string(), demo(), demoRuns());

@@ -147,7 +147,8 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
       if (const auto& x = m.estimated_range_mixture)
         e["estimated_range_mixture"] = {{"nlos_fraction", number(x->nlos_fraction)},
                                         {"sigma", number(x->sigma)},
-                                        {"nlos_mean", number(x->nlos_mean)}};
+                                        {"nlos_mean", number(x->nlos_mean)},
+                                        {"weight", number(x->weight)}};
       if (m.estimated_accel_psd) e["estimated_accel_psd"] = number(*m.estimated_accel_psd);
     }
     e["associated"] = m.metrics.associated;
@@ -303,7 +304,7 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
   for (const auto& m : methods) {
     if (!m.contains("estimated_noise")) continue;
     out << "  " << m["name"].get<std::string>() << " estimated noise:";
-    char buf[96];
+    char buf[192];
     if (m.contains("estimated_range_sigma")) {
       std::snprintf(buf, sizeof buf, " model sigma %.3f m;", num(m, "estimated_range_sigma"));
       out << buf;
@@ -318,8 +319,11 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
     if (m.contains("estimated_range_mixture")) {
       const auto& x = m["estimated_range_mixture"];
       std::snprintf(buf, sizeof buf,
-                    " range likelihood: %.0f %% NLOS (+%.3f m mean), LOS std %.3f m;",
-                    100.0 * num(x, "nlos_fraction"), num(x, "nlos_mean"), num(x, "sigma"));
+                    " range likelihood: %.0f %% NLOS (+%.3f m mean), LOS std %.3f m, each range "
+                    "counted %.3g (errors correlated over %.3g ranges);",
+                    100.0 * num(x, "nlos_fraction"), num(x, "nlos_mean"), num(x, "sigma"),
+                    x.contains("weight") ? num(x, "weight") : 1.0,
+                    x.contains("weight") ? 1.0 / num(x, "weight") : 1.0);
       out << buf;
     }
     if (m.contains("estimated_accel_psd")) {

@@ -18,6 +18,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"respread", 0, 1, false, "a share of the particles"},
       {"respread_xy", 0, 1e3, false, "[m]"},
       {"respread_theta", 0, 180, false, "[deg]"},
+      {"range_share", 0, 1, true, "a share of each range's log-likelihood"},
       {"calib", 0, 1e6, false, "[s] of recording learnt from"},
       {"start_sigma", 0, 1e3, true, "[m]"},
       {"noise_rounds", 0, 100, false, "variance re-estimates (each a re-solve)"},

@@ -170,4 +170,23 @@ std::optional<RangeMixtureFit> fitRangeMixture(
   return fit;
 }
 
+double integratedAutocorrelationTime(const std::vector<double>& x) {
+  const size_t n = x.size();
+  if (n < 20) return 1.0;
+  double mean = 0.0;
+  for (double v : x) mean += v;
+  mean /= static_cast<double>(n);
+  double c0 = 0.0;
+  for (double v : x) c0 += (v - mean) * (v - mean);
+  if (!(c0 > 0.0)) return 1.0;
+  double tau = 1.0;
+  for (size_t k = 1; k <= n / 4; ++k) {
+    double ck = 0.0;
+    for (size_t i = 0; i + k < n; ++i) ck += (x[i] - mean) * (x[i + k] - mean);
+    tau += 2.0 * ck / c0;
+    if (static_cast<double>(k) >= 5.0 * tau) break;
+  }
+  return std::max(1.0, tau);
+}
+
 }  // namespace uwbloc::loc

@@ -198,6 +198,7 @@ void UwbRangeMeasurement::calibrate(const EstimatorStatistics& learnt, Estimator
     // and it loses the robot (CARMEN aces with simulated UWB: uwb-pf 19.8 m at the LOS std of
     // 0.086 m, 0.172 m at the Gaussian's 0.306 m).
     if (!learn_at_lidar_) mixture_->sigma = std::max(mixture_->sigma, noise_.sigma());
+    if (params_.range_share.value) mixture_->weight = *params_.range_share.value;
     stats.estimated_range_mixture = mixture_;
     ++stats.events["range_mixture_in_force"];
     if (learn_at_lidar_) ++stats.events["range_mixture_at_lidar_pose"];
@@ -285,8 +286,9 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   const double inv2 = 1.0 / (2.0 * sig * sig);
   const Eigen::Vector3d anchor = r.anchor;
   if (mixture_) {
+    const double share = mixture_->weight;
     pf.weight([&](double x, double y, double th) {
-      return mixture_->logDensity(d - uwb::predictRange({x, y, th}, tag, anchor), sig);
+      return share * mixture_->logDensity(d - uwb::predictRange({x, y, th}, tag, anchor), sig);
     });
     return;
   }
@@ -301,7 +303,7 @@ double UwbRangeMeasurement::addLogLikelihood(double l, double x, double y, doubl
   for (const auto& r : used_) {
     const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
     if (mixture_)
-      l += mixture_->logDensity(r.measurement.range - h);
+      l += mixture_->weight * mixture_->logDensity(r.measurement.range - h);
     else
       l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs
   }
@@ -356,6 +358,10 @@ void RangeModelProbe::finish(EstimatorStatistics& stats) {
   stats.estimated_range_sigma = robust(std::move(all)).second;
   if (const auto fit = fitRangeMixture(residuals_)) {
     stats.estimated_range_mixture = fit->mixture;
+    // Each anchor's residual series, in the order its ranges came.
+    std::vector<double> taus;
+    for (const auto& [anchor, e] : by_anchor) taus.push_back(integratedAutocorrelationTime(e));
+    stats.estimated_range_mixture->weight = 1.0 / medianOf(std::move(taus));
     ++stats.events["range_mixture_learnt"];
   }
   ++stats.events["range_model_at_filter_pose"];

@@ -21,6 +21,12 @@ struct RangeMixture {
   double nlos_fraction = 0.0;  ///< w, in (0, 1)
   double sigma = 0.1;          ///< s [m]
   double nlos_mean = 0.5;      ///< m, the mean NLOS excess [m]
+  /// The share of each range's log-density a filter counts: 1 / the residuals' integrated
+  /// autocorrelation time in ranges (integratedAutocorrelationTime, the median over anchors).
+  /// Ranges whose errors persist over many ranges (an anchor out of sight for a while, the pose's
+  /// own slow error) carry less than one range's information each; a filter that multiplies their
+  /// densities as if independent grows sure of where they pull it. 1 when not learnt.
+  double weight = 1.0;
 
   /// log p(e) with the LOS std widened to `sigma_eff` (>= sigma: the state's own uncertainty,
   /// or an NLOS model's doubt): both parts take it.
@@ -48,5 +54,12 @@ struct RangeMixtureFit {
 };
 std::optional<RangeMixtureFit> fitRangeMixture(
     const std::vector<std::pair<int, double>>& residuals);
+
+/// The integrated autocorrelation time of a series, in samples: tau = 1 + 2 sum_{k=1..M} rho_k,
+/// rho_k the autocorrelation at lag k about the mean, and M the first lag with M >= 5 tau(M)
+/// (Sokal's automatic window), at most a quarter of the series. 1 for white noise, about
+/// (1 + a) / (1 - a) for an AR(1) series of coefficient a; never below 1. 1 when the series has
+/// fewer than 20 samples or no variance.
+double integratedAutocorrelationTime(const std::vector<double>& x);
 
 }  // namespace uwbloc::loc

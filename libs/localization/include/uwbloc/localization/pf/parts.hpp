@@ -154,6 +154,9 @@ struct UwbPartParams {
   /// half of the last `lost_ranges` ranges fail the NLOS test (neither part of the mixture
   /// explains them); the filter then relocalises over the map. 0: never.
   int lost_ranges = 50;
+  /// Under the mixture: the share of each range's log-density the filter counts; auto: the one
+  /// learnt with the mixture at the LiDAR's pose (RangeMixture::weight), else 1.
+  AutoDouble range_share;
 
   template <class V>
   void visit(V&& v) {
@@ -181,6 +184,10 @@ struct UwbPartParams {
       "with LiDAR and sigma=auto: learn the range mixture at the LiDAR's pose "
       "(lidar-mcl:range_model=1) over the first this many seconds, not from the smoothing's "
       "residuals, and take its LOS std as fitted [s]; 0: from the smoothing");
+    v("range_share", range_share,
+      "under the mixture, the share of each range's log-likelihood counted: auto = 1 / the "
+      "integrated autocorrelation time (in ranges) of the residuals the mixture was learnt from "
+      "at the LiDAR's pose (ranges whose errors persist are not independent), else 1");
   }
 };
 
