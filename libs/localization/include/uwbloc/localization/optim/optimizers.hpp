@@ -107,6 +107,8 @@ class BeetleSwarm {
                            int iterations, double initial_step, Rng& rng, double* best_fitness,
                            long* evaluations);
   const IbasParams& params() const { return params_; }
+  /// The initial antenna length d of the next maximize() runs (eq. 13 starts from it).
+  void setAntenna(double d) { params_.antenna = d; }
   /// Fitness of each beetle at its position after the last maximize() (row order).
   const Eigen::VectorXd& values() const { return current_value_; }
 

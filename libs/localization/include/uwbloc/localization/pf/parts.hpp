@@ -213,7 +213,11 @@ constexpr std::array<EnumName<SwarmEpochs>, 2> enumNames(SwarmEpochs) {
 /// The PF-IBAS posterior step (the paper's §2.1.3 with the changes the README measures).
 struct SwarmPartParams {
   int iterations = 1;        ///< IBAS iterations per epoch (the paper: one)
-  double step = 0.1;         ///< IBAS initial step [m, rad] (the paper's 0.1)
+  /// IBAS initial step [m, rad]; auto: the search box's planar width, which the paper's eq. (12)
+  /// takes as the initial step ("its initial value consistent with the search region"). A beetle
+  /// keeps its place when its step would make it worse, so a long first step costs nothing where
+  /// the particle sits well, and finds the fit where the cloud is off.
+  AutoDouble step;
   bool move_theta = false;   ///< the swarm moves the heading too (else x, y only)
   double min_spread = 0.02;  ///< inject diversity below this swarm spread [m]
   bool resample = true;      ///< after the swarm, also resample when ESS/N < ess
@@ -228,7 +232,9 @@ struct SwarmPartParams {
   template <class V>
   void visit(V&& v) {
     v("ibas_iters", iterations, "IBAS iterations per epoch");
-    v("ibas_step", step, "IBAS initial step [m, rad]");
+    v("ibas_step", step,
+      "IBAS initial step [m, rad]; auto: the width of the search box (the cloud's extent, at "
+      "least 0.6 m), as the paper's eq. (12) starts from the search region");
     v("ibas_theta", move_theta, "IBAS moves the heading too");
     v("min_spread", min_spread, "inject diversity when the swarm spread falls below [m]");
     v("ibas_resample", resample, "after the swarm, also resample when ESS/N < ess");
