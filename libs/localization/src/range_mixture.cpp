@@ -6,6 +6,8 @@
 #include <cmath>
 #include <numeric>
 
+#include "uwbloc/localization/range_noise.hpp"
+
 namespace uwbloc::loc {
 
 namespace {
@@ -187,6 +189,14 @@ double integratedAutocorrelationTime(const std::vector<double>& x) {
     if (static_cast<double>(k) >= 5.0 * tau) break;
   }
   return std::max(1.0, tau);
+}
+
+double independentShare(const std::vector<std::pair<int, double>>& residuals) {
+  std::map<int, std::vector<double>> by_anchor;
+  for (const auto& [anchor, e] : residuals) by_anchor[anchor].push_back(e);
+  std::vector<double> taus;
+  for (const auto& [anchor, e] : by_anchor) taus.push_back(integratedAutocorrelationTime(e));
+  return taus.empty() ? 1.0 : 1.0 / medianOf(std::move(taus));
 }
 
 }  // namespace uwbloc::loc

@@ -646,8 +646,10 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
                                              a.ranges};
   if (p.estimate_scale) stats_.estimated_range_scale = g.scale();
   if (auto_sigma) {
-    if (auto fit = fitRangeMixture(g.rangeResiduals())) {
+    const auto residuals = g.rangeResiduals();
+    if (auto fit = fitRangeMixture(residuals)) {
       stats_.estimated_range_mixture = fit->mixture;
+      stats_.estimated_range_mixture->weight = independentShare(residuals);
       ++stats_.events["range_mixture_learnt"];
     }
   }

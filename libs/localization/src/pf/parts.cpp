@@ -358,10 +358,7 @@ void RangeModelProbe::finish(EstimatorStatistics& stats) {
   stats.estimated_range_sigma = robust(std::move(all)).second;
   if (const auto fit = fitRangeMixture(residuals_)) {
     stats.estimated_range_mixture = fit->mixture;
-    // Each anchor's residual series, in the order its ranges came.
-    std::vector<double> taus;
-    for (const auto& [anchor, e] : by_anchor) taus.push_back(integratedAutocorrelationTime(e));
-    stats.estimated_range_mixture->weight = 1.0 / medianOf(std::move(taus));
+    stats.estimated_range_mixture->weight = independentShare(residuals_);
     ++stats.events["range_mixture_learnt"];
   }
   ++stats.events["range_model_at_filter_pose"];

@@ -62,4 +62,8 @@ std::optional<RangeMixtureFit> fitRangeMixture(
 /// fewer than 20 samples or no variance.
 double integratedAutocorrelationTime(const std::vector<double>& x);
 
+/// RangeMixture::weight from residuals in the order their ranges came, each with its anchor id:
+/// 1 / the median over the anchors of each one's integratedAutocorrelationTime.
+double independentShare(const std::vector<std::pair<int, double>>& residuals);
+
 }  // namespace uwbloc::loc
