@@ -329,8 +329,8 @@ double epochTime(const std::vector<AcceptedRange>& epoch);
 /// gains (u^T C_v u) dt^2 for the velocity's uncertainty. v is the track's velocity shrunk by
 /// (1 - tr C_v / |v|^2), nothing when that is not positive. Ranges taken at t are unchanged.
 /// Without it, the fix from ranges one anchor at a time over a second is no point of the path: on
-/// CMU Plaza2 (3.3 m/s, a range every 0.23 s) each range is read up to 1.5 m from where the tag is
-/// at the epoch's time.
+/// CMU Plaza2 (3.3 m/s, a range every 0.23 s) a range taken 0.3 s before the epoch's time reads
+/// up to 1 m from what it would read then.
 std::vector<uwb::PlanarRange> deskewRanges(const std::vector<AcceptedRange>& epoch,
                                            std::vector<uwb::PlanarRange> planar, double t,
                                            const FixContinuity::Motion& motion);

@@ -155,7 +155,8 @@ struct UwbPartParams {
   /// explains them); the filter then relocalises over the map. 0: never.
   int lost_ranges = 50;
   /// Under the mixture: the share of each range's log-density the filter counts; auto: the one
-  /// learnt with the mixture at the LiDAR's pose (RangeMixture::weight), else 1.
+  /// learnt with the mixture (RangeMixture::weight, from the residuals at the LiDAR's pose or of
+  /// the learning start's smoothing).
   AutoDouble range_share;
 
   template <class V>
@@ -187,7 +188,8 @@ struct UwbPartParams {
     v("range_share", range_share,
       "under the mixture, the share of each range's log-likelihood counted: auto = 1 / the "
       "integrated autocorrelation time (in ranges) of the residuals the mixture was learnt from "
-      "at the LiDAR's pose (ranges whose errors persist are not independent), else 1");
+      "(at the LiDAR's pose, or of the smoothing): ranges whose errors persist are not "
+      "independent");
   }
 };
 
