@@ -240,12 +240,8 @@ TEST(FixContinuity, TheTracksMotionIsItsVelocityWhilePlausible) {
   loc::FixContinuity slow(params), fast(params);
   for (int k = 0; k <= 10; ++k) {
     const double t = 0.5 * k;
-    const auto at = [&](double speed) {
-      const Eigen::Vector2d tag(speed * t, 0.0);
-      return epoch(tag, false);
-    };
     for (auto [c, speed] : {std::pair{&slow, 1.0}, std::pair{&fast, 4.0}}) {
-      const auto ranges = at(speed);
+      const auto ranges = epoch(Eigen::Vector2d(speed * t, 0.0), false);
       ASSERT_TRUE(c->check(t, uwb::solveGaussNewton(ranges), ranges, gaussNewton).fix);
     }
     if (k == 0) {

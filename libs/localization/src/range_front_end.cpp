@@ -270,9 +270,11 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver
                                                     const std::vector<AcceptedRange>& epoch,
                                                     std::vector<uwb::PlanarRange> planar,
                                                     bool continuity, bool deskew) {
-  if (continuity && deskew)
-    if (auto motion = continuity_.motion(epochTime(epoch)))
-      planar = deskewRanges(epoch, std::move(planar), epochTime(epoch), *motion);
+  if (continuity && deskew) {
+    const double t = epochTime(epoch);
+    if (auto motion = continuity_.motion(t))
+      planar = deskewRanges(epoch, std::move(planar), t, *motion);
+  }
   const uwb::Fix fix = multilaterate(solver, planar);
   if (!fix.ok()) {
     // Two ranges give no fix, but the continuity track follows the intersection it predicts, so

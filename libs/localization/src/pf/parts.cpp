@@ -370,7 +370,6 @@ SwarmStep::SwarmStep(const SwarmPartParams& params) : params_(params) {
   box_ = optim::Box{Eigen::VectorXd(3), Eigen::VectorXd(3)};
   optim::IbasParams ibas;
   ibas.frame_invariant_mutation = true;  // eq. (25) as printed scales with the map coordinates
-  ibas.antenna = params_.step.value.value_or(0.1);  // set per epoch when auto
   ibas.random_tie_direction = false;  // a flat epoch fitness carries no information
   ibas.move_mask = Eigen::Vector3d(1.0, 1.0, params_.move_theta ? 1.0 : 0.0);
   swarm_ = optim::BeetleSwarm(ibas);
@@ -423,10 +422,11 @@ double SwarmStep::move(ParticleFilter& pf, const EpochFitness& fitness) {
   long evals = 0;
   double best = 0.0;
   if (params_.weights == SwarmWeights::kPosterior) start_ = positions_;
-  // The initial step (and antenna): the one given, or the search box's planar width.
+  // The initial step, and the antenna it starts with: the one given, or the search box's planar
+  // width.
   const double step =
       params_.step.value.value_or(0.5 * ((box_.hi(0) - box_.lo(0)) + (box_.hi(1) - box_.lo(1))));
-  if (!params_.step.value) swarm_.setAntenna(step);
+  swarm_.setAntenna(step);
   swarm_.maximize(positions_, objective, box_, params_.iterations, step, pf.rng(), &best, &evals);
   double mx = 0, my = 0;
   for (Eigen::Index i = 0; i < n; ++i) {
