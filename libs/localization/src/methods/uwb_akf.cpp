@@ -18,10 +18,24 @@ void UwbAkf::start(const uwb::Fix& fix) {
   measurement_.mean = akf_.estimatesMean(false);
 }
 
+void UwbAkf::learn(const EstimatorStatistics& learnt) {
+  UwbKf::learn(learnt);
+  if (akf_.q_floor)
+    learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
+}
+
 bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   Eigen::Matrix4d f, q;
   constantVelocityModel(dt, params_.accel_psd, f, q, params_.velocity_tau);
-  if (process_.k == 0) process_.Q = q;  // Q̂_0: the model's over the first interval
+  if (process_.k == 0) {
+    process_.Q = q;  // Q̂_0: the model's over the first interval
+  } else if (akf_.q_floor) {
+    // Q̂ >= the model's Q over this interval (UwbAkfParams::q_floor): what Q̂ holds beyond it is
+    // kept, what falls short of it is raised.
+    Eigen::Matrix4d above = process_.Q - q;
+    if (kalman::projectEigenvalues<4>(above, 0.0)) ++stats_.events["q_kept_at_model"];
+    process_.Q = q + above;
+  }
   Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
   h.leftCols<2>().setIdentity();
   const auto step = kalman::sageHusaStep<4, 2>(x_, p_, process_, measurement_, f, fix.position, h,

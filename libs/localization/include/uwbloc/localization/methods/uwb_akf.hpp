@@ -12,7 +12,8 @@
 //
 // The statistics start from uwb-kf's and uwb-ekf's models: Q̂_0 the constant-velocity process
 // noise over the data's first interval, R̂_0 the first fix's covariance (fix) or sigma^2 (ranges),
-// q̂_0 = r̂_0 = 0. Neither mode gates: the paper's filters adapt to what a gate would drop.
+// q̂_0 = r̂_0 = 0; on the fix Q̂ is then kept at or above the model's Q over each interval
+// (q_floor). Neither mode gates: the paper's filters adapt to what a gate would drop.
 #pragma once
 
 #include <map>
@@ -52,6 +53,15 @@ struct UwbAkfParams {
   double gamma = 0.0;        ///< eq. (17)'s bound; 0 = no divergence test (AKF); uwb-iakf: 1
   double r_floor = 0.01;     ///< smallest std of R̂'s eigenvalues [m] (the positivity guard)
   AkfMeans means = AkfMeans::kAuto;
+  /// On the fix: Q̂ kept at or above the constant-velocity model's process noise over each
+  /// interval, with q learnt as uwb-kf learns it (Q̂ - Q_model projected onto the positive
+  /// semidefinite matrices). Q̂ and R̂ enter the innovation's covariance only through their sum
+  /// (E[e e^T] = H (Φ P Φ^T + Q̂) H^T + R̂), so the innovations cannot tell them apart: a filter
+  /// that falls behind on a turn reads its lag as measurement noise, R̂ grows, the gain falls,
+  /// K e e^T K^T shrinks with it, and the lag grows (CMU Plaza2: uwb-akf 2.44 m, R̂ 3-8 m^2
+  /// against a fix error of about 0.5 m^2; the MRPT demo 0.443 m against uwb-kf's 0.171). The
+  /// floor stops Q̂ from following R̂ down; the adaptation may still raise it.
+  bool q_floor = true;
   /// Whether q̂ (`process`) or r̂ (else) is estimated, `auto` resolved for the mode.
   bool estimatesMean(bool process) const {
     const AkfMeans m = means != AkfMeans::kAuto
@@ -68,6 +78,10 @@ struct UwbAkfParams {
     v("gamma", gamma,
       "divergence bound: e'e > gamma tr(HPH'+R) inflates P (eq. 17-23); 0 = off (plain AKF)");
     v("r_floor", r_floor, "smallest std kept in the estimated R [m] (positive definiteness)");
+    v("q_floor", q_floor,
+      "on the fix: the estimated Q kept at or above the constant-velocity model's over each "
+      "interval, q learnt as uwb-kf learns it (the innovations give Q+R only as a sum: without "
+      "the floor a lagging filter reads its lag as R and falls further behind); 0: eq. 16 alone");
     v("means", means,
       "noise means estimated besides the covariances: qr (q-hat and r-hat, eq. 16), q, r, none, "
       "or auto: none on the fix (neither can be told from the state there), r (each anchor's "
@@ -87,6 +101,8 @@ class UwbAkf : public UwbKf {
   /// blunts the divergence test (uwb-iakf on the intel log with simulated UWB: 12.9 m with it,
   /// 2.24 m without); a raised q costs uwb-akf on Hanyang NLOS B3 (0.504 against 0.487 m).
   bool estimatesOwnNoise() const override { return true; }
+  /// The learnt q, for q_floor only (the range std stays unlearnt, above).
+  void learn(const EstimatorStatistics& learnt) override;
 
  private:
   UwbAkfParams akf_;
