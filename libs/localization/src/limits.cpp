@@ -55,6 +55,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"sigma_yaw", 0, 1e3, true, "[rad/s^2]"},
       {"b", 0.5, 0.999, false, "forgetting factor: d_k = (1-b)/(1-b^(k+1)) needs b < 1"},
       {"gamma", 0, 1e6, false, "divergence bound (0: off)"},
+      {"prior_steps", 0, 1e6, false, "steps (0: the first innovation replaces the start)"},
       {"r_floor", 0, 100, true, "[m]: keeps the estimated R positive definite"},
       {"gate", 0, 1e6, true, "chi-square threshold"},
       {"huber", 0, 1e3, true, "[std]"},

@@ -12,10 +12,13 @@ UwbAkf::UwbAkf(const UwbAkfParams& params, const EstimatorContext& context)
 void UwbAkf::start(const uwb::Fix& fix) {
   UwbKf::start(fix);
   process_ = {};
+  q_seeded_ = false;
   measurement_ = {};
   measurement_.R = fix.covariance;
   process_.mean = akf_.estimatesMean(true);
   measurement_.mean = akf_.estimatesMean(false);
+  // The starting statistics count as akf_.priorSteps() steps already taken (UwbAkfParams).
+  measurement_.k = process_.k = akf_.priorSteps();
 }
 
 void UwbAkf::learn(const EstimatorStatistics& learnt) {
@@ -27,7 +30,8 @@ void UwbAkf::learn(const EstimatorStatistics& learnt) {
 bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   Eigen::Matrix4d f, q;
   constantVelocityModel(dt, params_.accel_psd, f, q, params_.velocity_tau);
-  if (process_.k == 0) {
+  if (!q_seeded_) {
+    q_seeded_ = true;
     process_.Q = q;  // Q̂_0: the model's over the first interval
   } else if (akf_.q_floor) {
     // Q̂ >= the model's Q over this interval (UwbAkfParams::q_floor): what Q̂ holds beyond it is
@@ -85,6 +89,7 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
   if (fresh) {
     anchor.R(0, 0) = params_.front.sigmaValue() * params_.front.sigmaValue();
     anchor.mean = akf_.estimatesMean(false);
+    anchor.k = akf_.priorSteps();
   }
   const double innovation = r.measurement.range - predicted;
   // uwb-ekf's gate on the innovation less the anchor's bias, against the adaptive S: a gated
