@@ -964,19 +964,26 @@ TEST(Shkf, TakesAPerRangeNlosProbability) {
 // points for the range to the anchor at (3, 4) are the start ± 1 m along x and y (ranges
 // sqrt(20), sqrt(32), sqrt(18), sqrt(34)) and four velocity points at the start (range 5), so
 // the predicted range is their mean. A range of 5.2 m is within the 0.24 m NLOS threshold (no
-// robust factor), and the first Sage-Husa weight d_0 = 1 makes the anchor's bias the whole
-// innovation.
+// robust factor). With prior_steps=0 (the paper's start) the first Sage-Husa weight d_0 = 1
+// makes the anchor's bias the whole innovation; by default the start r̂ = 0 counts as 1/(1-b) =
+// 33.3 steps (rounded to 33), so the weight is d_33 = (1-b)/(1-b^34) and the bias that share
+// of the innovation.
 TEST(PointFilters, IahckfFirstStatisticByHand) {
-  loc::EstimatorContext ctx;
-  ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
-  ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
-  auto est = loc::Registry::builtin().create("uwb-iahckf:sigma=0.1,iq=0,calib=0", ctx);
-  ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
-  ASSERT_TRUE(est->process(rangeAt(10.0, 2, 5.2)).has_value());
   const double predicted =
       (std::sqrt(20.0) + std::sqrt(32.0) + std::sqrt(18.0) + std::sqrt(34.0) + 4 * 5.0) / 8;
-  const auto& noise = est->statistics().estimated_noise.at(2);
-  EXPECT_NEAR(noise.bias, 5.2 - predicted, 1e-9);
-  EXPECT_EQ(noise.ranges, 1);
-  EXPECT_EQ(est->statistics().events.count("robust_factor_inflated"), 0u);
+  const double b = 0.97;
+  for (const auto& [spec, d] :
+       {std::pair<std::string, double>{"uwb-iahckf:sigma=0.1,iq=0,calib=0,prior_steps=0", 1.0},
+        {"uwb-iahckf:sigma=0.1,iq=0,calib=0", (1.0 - b) / (1.0 - std::pow(b, 34))}}) {
+    loc::EstimatorContext ctx;
+    ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
+    ctx.initial_pose = Eigen::Vector3d(0, 0, 0);
+    auto est = loc::Registry::builtin().create(spec, ctx);
+    ASSERT_TRUE(est->process(rangeAt(10.0, 1, 3.0)).has_value());  // the start
+    ASSERT_TRUE(est->process(rangeAt(10.0, 2, 5.2)).has_value());
+    const auto& noise = est->statistics().estimated_noise.at(2);
+    EXPECT_NEAR(noise.bias, d * (5.2 - predicted), 1e-9) << spec;
+    EXPECT_EQ(noise.ranges, 1) << spec;
+    EXPECT_EQ(est->statistics().events.count("robust_factor_inflated"), 0u) << spec;
+  }
 }

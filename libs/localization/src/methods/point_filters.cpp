@@ -69,7 +69,10 @@ bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
   const int id = r.measurement.anchor_id;
   auto [it, fresh] = anchors_.try_emplace(id);
   auto& stat = it->second;
-  if (fresh) stat.R(0, 0) = rangeVariance();
+  if (fresh) {
+    stat.R(0, 0) = rangeVariance();
+    stat.k = kalman::sageHusaStartStep(iah_.prior_steps.value, iah_.forgetting);
+  }
   const RangePrediction pred = predictRange(r);
   const double innovation = r.measurement.range - pred.z;
   const double e = innovation - stat.r(0);  // less the anchor's estimated bias
@@ -92,7 +95,9 @@ bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
       ++stats_.events["r_kept_positive"];
     }
     ++stat.k;
-    stats_.estimated_noise[id] = {stat.r(0), std::sqrt(stat.R(0, 0)), stat.k};
+    stats_.estimated_noise[id] = {
+        stat.r(0), std::sqrt(stat.R(0, 0)),
+        stat.k - kalman::sageHusaStartStep(iah_.prior_steps.value, iah_.forgetting)};
   }
   return true;
 }

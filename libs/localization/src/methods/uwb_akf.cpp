@@ -107,7 +107,7 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
   if (out.r_projected) ++stats_.events["r_kept_positive"];
   // The anchor's range model as the filter now sees it: r̂ its bias, sqrt(R̂) its std.
   stats_.estimated_noise[r.measurement.anchor_id] = {anchor.r(0), std::sqrt(anchor.R(0, 0)),
-                                                     anchor.k};
+                                                     anchor.k - akf_.priorSteps()};
   return true;
 }
 

@@ -66,6 +66,7 @@ struct UwbIahCkfParams {
   double nlos_threshold = 0.24; ///< |innovation| below which a range is never down-weighted [m]
   AutoDouble r_floor;           ///< smallest std of R̂ [m]; auto: half the range sigma
   bool bias = true;             ///< estimate each anchor's range bias r̂
+  AutoDouble prior_steps;       ///< the steps sigma^2 and r̂ = 0 count as (sageHusaStartStep)
 
   template <class V>
   void visit(V&& v) {
@@ -77,6 +78,7 @@ struct UwbIahCkfParams {
     v("nlos_threshold", nlos_threshold,
       "innovations within this are never down-weighted (the paper's UWB-vs-INS 0.24 m) [m]");
     v("r_floor", r_floor, "smallest std kept in the estimated R [m], or auto: half of sigma");
+    v("prior_steps", prior_steps, kalman::kPriorStepsHelp);
   }
 };
 

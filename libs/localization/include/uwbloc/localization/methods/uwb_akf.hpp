@@ -16,7 +16,6 @@
 // (q_floor). Neither mode gates: the paper's filters adapt to what a gate would drop.
 #pragma once
 
-#include <cmath>
 #include <map>
 
 #include "uwbloc/localization/kalman/sage_husa.hpp"
@@ -64,16 +63,9 @@ struct UwbAkfParams {
   /// floor stops Q̂ from following R̂ down; the adaptation may still raise it.
   bool q_floor = true;
   /// The steps the starting statistics (R̂_0: the fix's covariance, or sigma^2 per anchor; Q̂_0:
-  /// the model's) count as, k's start in d_k = (1-b)/(1-b^(k+1)). At k = 0 (the paper's), d_0 = 1
-  /// replaces them by the first innovation's: R̂_1 = e e^T - H P H^T, with P still the start's,
-  /// is indefinite or far off, and one range can then pin the filter (uwb-akf:mode=ranges on the
-  /// simulated static_los: R̂ at r_floor after its first ranges, 1 m off over its first 5 s,
-  /// 0.674 m against uwb-ekf's 0.052). auto: 1 / (1 - b), the statistics' memory (33 at b =
-  /// 0.97): they start as if the filter had run that long with them.
+  /// the model's) count as (kalman::sageHusaStartStep).
   AutoDouble prior_steps;
-  long priorSteps() const {
-    return std::lround(prior_steps.value.value_or(1.0 / (1.0 - forgetting)));
-  }
+  long priorSteps() const { return kalman::sageHusaStartStep(prior_steps.value, forgetting); }
   /// Whether q̂ (`process`) or r̂ (else) is estimated, `auto` resolved for the mode.
   bool estimatesMean(bool process) const {
     const AkfMeans m = means != AkfMeans::kAuto
@@ -94,10 +86,7 @@ struct UwbAkfParams {
       "on the fix: the estimated Q kept at or above the constant-velocity model's over each "
       "interval, q learnt as uwb-kf learns it (the innovations give Q+R only as a sum: without "
       "the floor a lagging filter reads its lag as R and falls further behind); 0: eq. 16 alone");
-    v("prior_steps", prior_steps,
-      "steps the starting noise statistics (the fix's covariance or sigma^2, the model's Q) "
-      "count as, k's start in d_k; auto: 1/(1-b), their memory; 0: the paper's (the first "
-      "innovation replaces them)");
+    v("prior_steps", prior_steps, kalman::kPriorStepsHelp);
     v("means", means,
       "noise means estimated besides the covariances: qr (q-hat and r-hat, eq. 16), q, r, none, "
       "or auto: none on the fix (neither can be told from the state there), r (each anchor's "
