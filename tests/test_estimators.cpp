@@ -697,9 +697,7 @@ TEST(AdaptiveKalman, TightlyCoupledModeRunsOnTheRoom) {
 // 0.069 against 0.098 m.
 TEST(AdaptiveKalman, StartingStatisticsCountAsTheirMemory) {
   auto rmse = [](const data::Dataset& ds, const std::string& spec) {
-    const auto run = eval::runMethod(ds, spec, 1);
-    const auto m = eval::computeMetrics(eval::associate(run.trajectory, ds.ground_truth),
-                                        run.trajectory, ds.ground_truth);
+    const auto m = eval::evaluateMethod(ds, spec, 1, 1).metrics;
     std::printf("[ PRIOR    ] %-40s rmse_2d %.4f m, coverage %.3f\n", spec.c_str(), m.rmse_2d,
                 m.coverage);
     EXPECT_GE(m.coverage, 0.9) << spec;

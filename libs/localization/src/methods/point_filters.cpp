@@ -71,7 +71,7 @@ bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
   auto& stat = it->second;
   if (fresh) {
     stat.R(0, 0) = rangeVariance();
-    stat.k = kalman::sageHusaStartStep(iah_.prior_steps.value, iah_.forgetting);
+    stat.k = iah_.priorSteps();
   }
   const RangePrediction pred = predictRange(r);
   const double innovation = r.measurement.range - pred.z;
@@ -95,9 +95,7 @@ bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
       ++stats_.events["r_kept_positive"];
     }
     ++stat.k;
-    stats_.estimated_noise[id] = {
-        stat.r(0), std::sqrt(stat.R(0, 0)),
-        stat.k - kalman::sageHusaStartStep(iah_.prior_steps.value, iah_.forgetting)};
+    stats_.estimated_noise[id] = {stat.r(0), std::sqrt(stat.R(0, 0)), stat.k - iah_.priorSteps()};
   }
   return true;
 }

@@ -12,7 +12,6 @@ UwbAkf::UwbAkf(const UwbAkfParams& params, const EstimatorContext& context)
 void UwbAkf::start(const uwb::Fix& fix) {
   UwbKf::start(fix);
   process_ = {};
-  q_seeded_ = false;
   measurement_ = {};
   measurement_.R = fix.covariance;
   process_.mean = akf_.estimatesMean(true);
@@ -30,9 +29,8 @@ void UwbAkf::learn(const EstimatorStatistics& learnt) {
 bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   Eigen::Matrix4d f, q;
   constantVelocityModel(dt, params_.accel_psd, f, q, params_.velocity_tau);
-  if (!q_seeded_) {
-    q_seeded_ = true;
-    process_.Q = q;  // Q̂_0: the model's over the first interval
+  if (process_.k == akf_.priorSteps()) {
+    process_.Q = q;  // Q̂_0: the model's over the first interval (no step taken yet)
   } else if (akf_.q_floor) {
     // Q̂ >= the model's Q over this interval (UwbAkfParams::q_floor): what Q̂ holds beyond it is
     // kept, what falls short of it is raised.

@@ -67,6 +67,7 @@ struct UwbIahCkfParams {
   AutoDouble r_floor;           ///< smallest std of R̂ [m]; auto: half the range sigma
   bool bias = true;             ///< estimate each anchor's range bias r̂
   AutoDouble prior_steps;       ///< the steps sigma^2 and r̂ = 0 count as (sageHusaStartStep)
+  long priorSteps() const { return kalman::sageHusaStartStep(prior_steps.value, forgetting); }
 
   template <class V>
   void visit(V&& v) {

@@ -115,7 +115,6 @@ class UwbAkf : public UwbKf {
   UwbAkfParams akf_;
   kalman::SageHusaProcess<4> process_;
   kalman::SageHusaMeasurement<2> measurement_;
-  bool q_seeded_ = false;  ///< Q̂_0 set (the model's over the first interval)
 };
 
 /// mode=ranges.
