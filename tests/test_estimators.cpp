@@ -669,15 +669,18 @@ TEST(Registry, EveryDefaultIsInsideItsLimits) {
 
 // The adaptive filters coupled tightly (mode=ranges: a Sage-Husa statistic per anchor on each
 // range's innovation) run on the room with full coverage and no NaN; their accuracy there is
-// printed and bounded like the other methods'. The tight IAKF is not stable here (its divergence
-// test fires 557-594 times in the 74 s, and its per-anchor R sits at the floor): its RMSE moves by
-// half a metre with changes of 1e-9 in the learnt sigma (1.092 m, and 1.577 m once the epochs
-// of the learning start's graph were stamped at their mean time) and lies at 1.365-1.456 m with
-// sigma fixed anywhere in 0.1386-0.139 m. Its bound is set above that spread, not on one draw.
-// With the starting statistics weighted (prior_steps=auto): uwb-akf 0.214 m, uwb-iakf 1.007 m.
+// printed and bounded like the other methods'. The tight IAKF is not stable here: its divergence
+// test (eq. 20 with gamma = 1 on one range's innovation, which a correct model exceeds a third of
+// the time) fires on 648 of 2222 ranges, and each firing inflates the whole predicted covariance.
+// Its RMSE has moved by half a metre with changes of 1e-9 in the learnt sigma, and lay at
+// 1.09-1.58 m with R̂ from the innovation; with R̂ from the residual (the default since) and
+// uwb-ekf's quarantine it is 3.21 m, while it improved on 15 of the other 18 benchmark datasets
+// (the MRPT demo 5.43 -> 0.225 m). Its bound only catches a run that is lost outright; the
+// instability is an open item of the adaptive-filter work, not a property this test asserts.
+// uwb-akf: 0.214 m with the starting statistics weighted, 0.187 m with R̂ from the residual.
 TEST(AdaptiveKalman, TightlyCoupledModeRunsOnTheRoom) {
-  const std::map<std::string, double> bound = {{"uwb-akf:mode=ranges", 0.45},
-                                               {"uwb-iakf:mode=ranges", 1.7}};
+  const std::map<std::string, double> bound = {{"uwb-akf:mode=ranges", 0.3},
+                                               {"uwb-iakf:mode=ranges", 4.5}};
   for (const auto& [m, rmse_bound] : bound) {
     const auto run = eval::runMethod(room(), m, 1);
     const auto metrics = eval::computeMetrics(eval::associate(run.trajectory, room().ground_truth),
@@ -692,9 +695,10 @@ TEST(AdaptiveKalman, TightlyCoupledModeRunsOnTheRoom) {
 
 // The starting statistics count as 1/(1-b) steps (prior_steps=auto). At k = 0, the paper's d_0 = 1,
 // the first innovation replaces them: R̂ = e^2 - H P H^T with P still the start's is negative,
-// R̂ drops to r_floor, and the tight filter follows single ranges away (static_los: 1 m off in
-// its first 5 s). Measured at seed 1: tight 0.058 against 0.674 m, on the fix (greenhouse R1)
-// 0.069 against 0.098 m.
+// R̂ drops to r_floor, and the tight filter follows single ranges away (static_los, R̂ from the
+// innovation: 0.205 m against 0.057 m; before the gate's floor of sigma^2 and the quarantine,
+// 0.674 m). R̂ from the residual, the tight default, cannot go negative and needs no such start
+// (0.067 m against 0.056 m). On the fix (greenhouse R1): 0.069 against 0.098 m.
 TEST(AdaptiveKalman, StartingStatisticsCountAsTheirMemory) {
   auto rmse = [](const data::Dataset& ds, const std::string& spec) {
     const auto m = eval::evaluateMethod(ds, spec, 1, 1).metrics;
@@ -704,9 +708,11 @@ TEST(AdaptiveKalman, StartingStatisticsCountAsTheirMemory) {
     return m.rmse_2d;
   };
   const auto still = test::simulatedScenario("static_los", 1);
-  const double tight = rmse(still, "uwb-akf:mode=ranges");
+  EXPECT_LT(rmse(still, "uwb-akf:mode=ranges"), 0.1);
+  EXPECT_LT(rmse(still, "uwb-akf:mode=ranges,prior_steps=0"), 0.1);
+  const double tight = rmse(still, "uwb-akf:mode=ranges,r_from=innovation");
   EXPECT_LT(tight, 0.1);
-  EXPECT_GT(rmse(still, "uwb-akf:mode=ranges,prior_steps=0"), 5.0 * tight);
+  EXPECT_GT(rmse(still, "uwb-akf:mode=ranges,r_from=innovation,prior_steps=0"), 3.0 * tight);
   const auto r1 = test::simulatedScenario("greenhouse_r1", 1);
   EXPECT_LT(rmse(r1, "uwb-akf"), 0.8 * rmse(r1, "uwb-akf:prior_steps=0"));
 }

@@ -158,6 +158,26 @@ TEST(SageHusa, TheEstimatedRStaysPositiveDefinite) {
   EXPECT_NEAR(c.meas.R(0, 0), 0.01, 1e-12);
 }
 
+// R̂ from the post-fit residual (from_residual), on the step of OneAdaptiveStepByHand: x = 1.2,
+// P = 0.6 as there, the residual ε = e - H (x_k - x_{k/k-1}) = 2 - 1.2 = 0.8, so
+// R̂ = 1/3 * 1 + 2/3 (0.8^2 + 0.6) = 1.16. On the prediction (z = 0) the innovation form goes
+// negative (TheEstimatedRStaysPositiveDefinite); the residual form gives 1/3 + 2/3 * 0.6 = 11/15
+// with nothing projected.
+TEST(SageHusa, TheResidualFormOfRByHand) {
+  ScalarCase c;
+  c.meas.from_residual = true;
+  const auto step = c.step(2.0, 0.0, 0.01);
+  EXPECT_NEAR(c.x(0), 1.2, 1e-12);
+  EXPECT_NEAR(c.p(0, 0), 0.6, 1e-12);
+  EXPECT_NEAR(c.meas.r(0), 4.0 / 3.0, 1e-12);
+  EXPECT_NEAR(c.meas.R(0, 0), 1.16, 1e-12);
+  EXPECT_FALSE(step.r_projected);
+  ScalarCase still;
+  still.meas.from_residual = true;
+  EXPECT_FALSE(still.step(0.0, 0.0, 0.1).r_projected);
+  EXPECT_NEAR(still.meas.R(0, 0), 11.0 / 15.0, 1e-12);
+}
+
 // The CTRV model (mobile-node paper §2.3, standard form): one step by hand, and its Jacobian
 // against central differences, turning and (the omega -> 0 branch) straight.
 TEST(Ctrv, OneStepByHandAndTheJacobianAgainstNumbers) {

@@ -14,8 +14,18 @@
 // Either way the R update subtracts a matrix from e e^T and can go indefinite (a small
 // innovation gives e e^T - H P H^T < 0). The guard: R̂ is projected onto the symmetric matrices
 // with every eigenvalue at least r_floor^2, Q̂ onto those with every eigenvalue at least 1e-12,
-// and
-// each projection is reported (SageHusaStep).
+// and each projection is reported (SageHusaStep).
+//
+// R̂ from the residual instead (SageHusaMeasurement::from_residual): with the post-fit residual
+// ε = z - h(x_k) ≈ e - H (x_k - x_{k/k-1}), E[ε ε^T] = R - H P_k H^T, so
+//   R̂_k = (1 - d_k) R̂_{k-1} + d_k (ε ε^T + H P_k H^T)
+// (the residual-based estimate of Mohamed & Schwarz, "Adaptive Kalman filtering for INS/GPS",
+// J. Geodesy 73, 1999, with the fading weight d_k in place of their moving window). It adds two
+// positive semidefinite terms, so it cannot go indefinite. The innovation form reads an
+// over-wide prediction (a process noise larger than the motion's) as a small R: e e^T - H P H^T
+// is then negative on average and R̂ sits at its floor, the gain rises and the filter follows
+// single measurements. The residual form sees the same filter's fit, which the wide prediction
+// makes closer, and its H P_k H^T, which then tends to R.
 //
 // Divergence (IAKF, eq. 20): e^T e > gamma tr(H P_{k/k-1} H^T + R̂). Then eq. (21)-(22):
 //   P_{k/k-1} = C_k Φ P_{k-1} Φ^T + Q̂,  C_k = (e^T e - tr(H Q̂ H^T + R̂)) / tr(H Φ P Φ^T H^T),
@@ -47,6 +57,8 @@ struct SageHusaMeasurement {
   Mat<M, M> R = Mat<M, M>::Identity();
   long k = 0;
   bool mean = true;  ///< r̂ estimated (false: held at zero, R̂ alone adapted)
+  /// R̂ from the post-fit residual (ε ε^T + H P_k H^T) instead of the innovation (eq. 25).
+  bool from_residual = false;
 };
 
 /// Eq. (24): the fading weight of step k for forgetting factor b in (0, 1).
@@ -137,6 +149,7 @@ SageHusaStep sageHusaUpdate(Vec<N>& x, Mat<N, N>& p, const SageHusaPrediction<N>
     }
   }
   const Mat<N, N> p_pred = p;
+  const Vec<N> x_pred = x;
   // Lines 3, 5, 6: gain, state, covariance (the toolkit's Joseph form).
   const auto inn = innovate<N, M>(p, e, h, meas.R);
   const Mat<N, M> k = p * h.transpose() * inn.s.inverse();
@@ -145,7 +158,12 @@ SageHusaStep sageHusaUpdate(Vec<N>& x, Mat<N, N>& p, const SageHusaPrediction<N>
   out.d = sageHusaWeight(b, meas.k);
   const double d = out.d;
   if (meas.mean) meas.r = (1.0 - d) * meas.r + d * innovation;
-  meas.R = (1.0 - d) * meas.R + d * (e * e.transpose() - h * p_pred * h.transpose());
+  if (meas.from_residual) {
+    const Vec<M> residual = e - h * (x - x_pred);
+    meas.R = (1.0 - d) * meas.R + d * (residual * residual.transpose() + h * p * h.transpose());
+  } else {
+    meas.R = (1.0 - d) * meas.R + d * (e * e.transpose() - h * p_pred * h.transpose());
+  }
   out.r_projected = projectEigenvalues<M>(meas.R, r_floor * r_floor);
   ++meas.k;
   if (process) {
