@@ -63,6 +63,27 @@ std::string manifestFor(const std::filesystem::path& dir, const std::string& raw
 
 }  // namespace
 
+// The README's table of limits is what `uwbloc methods --limits` prints, line for line: a limit
+// added, changed or removed in the code fails here until the README says the same.
+TEST(Cli, TheReadmesLimitsTableIsWhatMethodsLimitsPrints) {
+  const auto printed = runCli("methods --limits");
+  ASSERT_EQ(printed.code, 0) << printed.output;
+  std::ifstream readme(std::string(UWBLOC_SOURCE_DIR) + "/README.md");
+  ASSERT_TRUE(readme) << "README.md not found";
+  const std::string header = "| parameter | range | why |";
+  const std::string last = "Every other numeric parameter must be finite.";
+  std::string line, table;
+  bool inside = false;
+  while (std::getline(readme, line)) {
+    if (line == header) inside = true;
+    if (!inside) continue;
+    table += line + "\n";
+    if (line == last) break;
+  }
+  ASSERT_FALSE(table.empty()) << "README.md has no line '" << header << "'";
+  EXPECT_EQ(table, printed.output);
+}
+
 TEST(Cli, MissingRawlog) {
   const auto dir = uwbloc::test::scratchDir();
   const auto m = manifestFor(dir, "nowhere.rawlog");
