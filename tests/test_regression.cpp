@@ -17,15 +17,30 @@ using namespace uwbloc;
 
 namespace {
 const std::vector<std::string> kUwbMethods{"uwb-ls", "uwb-gn", "uwb-chan", "uwb-kf", "uwb-ekf"};
-}
 
-TEST(MrptDemo, UwbEkfBeatsThresholdAndCountsBeaconOneFaults) {
+// The MRPT demo scored by each of `specs` at seed 1, its table printed.
+std::vector<eval::MethodSummary> demoTable(const std::vector<std::string>& specs) {
   const auto ds =
       data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
   std::vector<eval::MethodSummary> all;
-  for (const auto& m : kUwbMethods) all.push_back(eval::evaluateMethod(ds, m, 1, 1));
-  all.push_back(eval::evaluateMethod(ds, "odom", 1, 1));
+  for (const auto& m : specs) all.push_back(eval::evaluateMethod(ds, m, 1, 1));
   std::printf("%s", eval::formatTable(ds, all).c_str());
+  return all;
+}
+
+// Rows 1 and 2 of `all` within `factor` times row 0's 2D RMSE, each with coverage above 0.95.
+void expectWithinFactorOfTheFirst(const std::vector<eval::MethodSummary>& all, double factor) {
+  for (size_t i = 1; i < 3; ++i) {
+    EXPECT_LT(all[i].metrics.rmse_2d, factor * all[0].metrics.rmse_2d) << all[i].spec;
+    EXPECT_GT(all[i].metrics.coverage, 0.95) << all[i].spec;
+  }
+}
+}  // namespace
+
+TEST(MrptDemo, UwbEkfBeatsThresholdAndCountsBeaconOneFaults) {
+  auto specs = kUwbMethods;
+  specs.push_back("odom");
+  const auto all = demoTable(specs);
   const auto& ekf = all[4];
   ASSERT_EQ(ekf.spec, "uwb-ekf");
   EXPECT_LT(ekf.metrics.rmse_2d, 0.60);
@@ -49,13 +64,8 @@ TEST(MrptDemo, UwbEkfBeatsThresholdAndCountsBeaconOneFaults) {
 // its vertices there (4.5 m), and uwb-multitag's Gauss-Newton, started from the last pose, stayed
 // there (4.8 m). The continuity check leaves beacon 1 out instead.
 TEST(MrptDemo, ContinuityLeavesOutBeaconOnesMirrorRanges) {
-  const auto ds =
-      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
-  std::vector<eval::MethodSummary> all;
-  for (const char* m : {"uwb-gn:continuity=0", "uwb-multitag:continuity=0", "uwb-gn", "uwb-kf",
-                        "uwb-multitag", "graph-uwb"})
-    all.push_back(eval::evaluateMethod(ds, m, 1, 1));
-  std::printf("%s", eval::formatTable(ds, all).c_str());
+  const auto all = demoTable({"uwb-gn:continuity=0", "uwb-multitag:continuity=0", "uwb-gn",
+                              "uwb-kf", "uwb-multitag", "graph-uwb"});
   for (size_t i = 0; i < 2; ++i)  // the mirror, without the check
     EXPECT_GT(all[i].metrics.rmse_2d, 3.0) << all[i].spec;
   // The continuity track keeps beacon 1's short ranges out near the line of beacons 2 and 3
@@ -77,18 +87,9 @@ TEST(MrptDemo, ContinuityLeavesOutBeaconOnesMirrorRanges) {
 // noise and stayed behind: 0.443 m against uwb-kf's 0.171. With Q̂ kept at or above the model's
 // (the default), uwb-akf and uwb-iakf score 0.175 m.
 TEST(MrptDemo, AdaptiveKalmanKeepsTheModelsProcessNoise) {
-  const auto ds =
-      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
-  std::vector<eval::MethodSummary> all;
-  for (const char* m : {"uwb-kf", "uwb-akf", "uwb-iakf", "uwb-akf:q_floor=0"})
-    all.push_back(eval::evaluateMethod(ds, m, 1, 1));
-  std::printf("%s", eval::formatTable(ds, all).c_str());
-  const double kf = all[0].metrics.rmse_2d;
-  for (size_t i = 1; i < 3; ++i) {
-    EXPECT_LT(all[i].metrics.rmse_2d, 1.1 * kf) << all[i].spec;
-    EXPECT_GT(all[i].metrics.coverage, 0.95) << all[i].spec;
-  }
-  EXPECT_GT(all[3].metrics.rmse_2d, 2.0 * kf);  // the lag the floor prevents
+  const auto all = demoTable({"uwb-kf", "uwb-akf", "uwb-iakf", "uwb-akf:q_floor=0"});
+  expectWithinFactorOfTheFirst(all, 1.1);
+  EXPECT_GT(all[3].metrics.rmse_2d, 2.0 * all[0].metrics.rmse_2d);  // the lag the floor prevents
 }
 
 // The adaptive filters on each range (mode=ranges) on the demo, whose beacon 1 reads metres
@@ -99,18 +100,9 @@ TEST(MrptDemo, AdaptiveKalmanKeepsTheModelsProcessNoise) {
 // there: 3.45 m. With R̂ from the residual (the default on ranges): uwb-akf 0.213 m, uwb-iakf
 // 0.225 m; uwb-ekf 0.163 m.
 TEST(MrptDemo, TightAdaptiveKalmanLearnsRFromTheResidual) {
-  const auto ds =
-      data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
-  std::vector<eval::MethodSummary> all;
-  for (const char* m : {"uwb-ekf", "uwb-akf:mode=ranges", "uwb-iakf:mode=ranges",
-                        "uwb-akf:mode=ranges,r_from=innovation"})
-    all.push_back(eval::evaluateMethod(ds, m, 1, 1));
-  std::printf("%s", eval::formatTable(ds, all).c_str());
-  const double ekf = all[0].metrics.rmse_2d;
-  for (size_t i = 1; i < 3; ++i) {
-    EXPECT_LT(all[i].metrics.rmse_2d, 1.5 * ekf) << all[i].spec;
-    EXPECT_GT(all[i].metrics.coverage, 0.95) << all[i].spec;
-  }
+  const auto all = demoTable({"uwb-ekf", "uwb-akf:mode=ranges", "uwb-iakf:mode=ranges",
+                              "uwb-akf:mode=ranges,r_from=innovation"});
+  expectWithinFactorOfTheFirst(all, 1.5);
   EXPECT_GT(all[3].metrics.rmse_2d, 3.0 * all[1].metrics.rmse_2d);  // R̂ at its floor
 }
 

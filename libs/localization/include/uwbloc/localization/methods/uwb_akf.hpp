@@ -110,8 +110,8 @@ struct UwbAkfParams {
     v("prior_steps", prior_steps, kalman::kPriorStepsHelp);
     v("r_from", r_from,
       "what the estimated R is learnt from: innovation (eq. 25: e e' - H P H'), residual (the "
-      "post-fit residual: r r' + H P H', positive by construction), or auto: innovation on the "
-      "fix, residual on the ranges");
+      "post-fit residual eps: eps eps' + H P H', positive by construction), or auto: "
+      "innovation on the fix, residual on the ranges");
     v("means", means,
       "noise means estimated besides the covariances: qr (q-hat and r-hat, eq. 16), q, r, none, "
       "or auto: none on the fix (neither can be told from the state there), r (each anchor's "
