@@ -100,7 +100,8 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
   // 0.705 m with this floor).
   const double e = innovation - anchor.r(0);
   const double s = (hj * p_ * hj.transpose())(0, 0) + std::max(anchor.R(0, 0), rangeVariance(r));
-  if (!admit(r.measurement.anchor_id, e, e * e <= params_.gate * s)) return false;
+  const bool in_gate = uwb::ChiSquareGate(params_.gate).acceptSquared(e * e / s);
+  if (!admit(r.measurement.anchor_id, e, in_gate)) return false;
   const auto out = kalman::sageHusaUpdate<4, 1>(x_, p_, pred, nullptr, anchor,
                                                 Eigen::Matrix<double, 1, 1>(innovation), hj,
                                                 akf_.forgetting, akf_.gamma, akf_.r_floor);
