@@ -32,6 +32,7 @@ done
 for d in fast fast_cal; do
   echo "== dynamic $d"
   "$uwbloc" compare -d "$out/$d/dataset.ini" \
-    -m uwb-multitag,uwb-multitag:smooth=false,uwb-gn,uwb-kf,uwb-ekf -o "$out/run_$d" 2> /dev/null \
+    -m uwb-multitag,uwb-multitag:smooth=false,uwb-ekf,uwb-ekf:tags=primary,uwb-gn,uwb-kf \
+    -o "$out/run_$d" 2> /dev/null \
     | grep -E "^(method|uwb-)"
 done

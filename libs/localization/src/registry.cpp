@@ -8,6 +8,7 @@
 #include "uwbloc/localization/methods/uwb_akf.hpp"
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
+#include "uwbloc/localization/methods/uwb_ekf_multitag.hpp"
 #include "uwbloc/localization/methods/uwb_ins.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
 #include "uwbloc/localization/methods/uwb_multitag.hpp"
@@ -73,9 +74,11 @@ Registry makeBuiltin() {
       "UWB only: the mobile-node paper's EKF, constant turn rate and velocity, on multilateration "
       "fixes (solver=ls: the paper's least squares) behind the increment-queue gate",
       {"ranges"}));
-  r.add(makeMethod<UwbEkf, UwbEkfParams>(
-      "uwb-ekf", "UWB only: constant-velocity EKF on each range, innovation-gated (tight)",
-      {"ranges"}));
+  r.add(makeMethod<UwbEkf, UwbEkfMethodParams>(
+      "uwb-ekf",
+      "UWB only: constant-velocity EKF on each range, innovation-gated (tight); with two tags or "
+      "more on the robot, on the pose and heading through the lever arms",
+      {"ranges"}, makeUwbEkf));
   r.add(makeMethod<UwbShkf, UwbShkfParams>(
       "uwb-shkf",
       "UWB only: improved Sage-Husa KF on each range: fading factor, variable window, adaptive "

@@ -20,15 +20,20 @@ UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
   start_ = makeLearningStart(params.front.sigma, &params.q, params.learning, context);
 }
 
-void UwbEkf::learn(const EstimatorStatistics& learnt) {
-  noise_.learnFrom(learnt, params_.learning.calib_bias, params_.front.sigma.isAuto());
-  noise_.report(stats_);
+void learnRangeFilterNoise(const EstimatorStatistics& learnt, UwbEkfParams& params,
+                           RangeNoiseModel& noise, EstimatorStatistics& stats) {
+  noise.learnFrom(learnt, params.learning.calib_bias, params.front.sigma.isAuto());
+  noise.report(stats);
   // The filter's std is then the corrected range's (the ranges are corrected as they come),
   // only ever widened; q only ever raised (range_noise.hpp).
-  if (params_.front.sigma.isAuto() && learnt.estimated_range_sigma)
-    params_.front.sigma.value = noise_.widened(params_.front.sigmaValue(), stats_);
-  learnAccelPsd(learnt, params_.q, params_.velocity_tau, params_.accel_psd, stats_);
-  countLearnt(learnt, stats_);
+  if (params.front.sigma.isAuto() && learnt.estimated_range_sigma)
+    params.front.sigma.value = noise.widened(params.front.sigmaValue(), stats);
+  learnAccelPsd(learnt, params.q, params.velocity_tau, params.accel_psd, stats);
+  countLearnt(learnt, stats);
+}
+
+void UwbEkf::learn(const EstimatorStatistics& learnt) {
+  learnRangeFilterNoise(learnt, params_, noise_, stats_);
 }
 
 void UwbEkf::reset() {
@@ -152,26 +157,28 @@ bool UwbEkf::updateWithRange(const AcceptedRange& r) {
   return true;
 }
 
+bool RangeQuarantine::admit(const Link& link, double innovation, bool in_gate, int readmit,
+                            double tolerance, EstimatorStatistics& stats) {
+  auto q = held_.find(link);
+  if (!in_gate) {
+    countRejection(stats, uwb::toString(uwb::RejectReason::kInnovation), link.first);
+    held_[link] = 0;
+    return false;
+  }
+  if (q == held_.end()) return true;
+  if (std::abs(innovation) <= tolerance && ++q->second >= readmit) {
+    held_.erase(q);
+    return true;
+  }
+  if (std::abs(innovation) > tolerance) q->second = 0;
+  countRejection(stats, "quarantine", link.first);
+  return false;
+}
+
 bool UwbEkf::admit(int id, double innovation, bool in_gate) {
   // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
   const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigmaValue());
-  auto q = quarantine_.find(id);
-  if (!in_gate) {
-    countRejection(uwb::RejectReason::kInnovation, id);
-    quarantine_[id] = 0;
-    return false;
-  }
-  if (q != quarantine_.end() && std::abs(innovation) > tolerance) {
-    q->second = 0;
-    countRejection("quarantine", id);
-    return false;
-  }
-  if (q == quarantine_.end() || ++q->second >= params_.readmit) {
-    if (q != quarantine_.end()) quarantine_.erase(q);
-    return true;
-  }
-  countRejection("quarantine", id);
-  return false;
+  return quarantine_.admit({id, 0}, innovation, in_gate, params_.readmit, tolerance, stats_);
 }
 
 }  // namespace uwbloc::loc

@@ -77,6 +77,28 @@ struct UwbEkfParams {
   }
 };
 
+/// The quarantine of uwb-ekf and the filters built on it (see the top of this file): a link
+/// whose range failed the gate is used again only after `readmit` in-gate ranges in a row, each
+/// within `tolerance` of the prediction. A link is an anchor (one tag) or an anchor-tag pair.
+class RangeQuarantine {
+ public:
+  using Link = std::pair<int, int>;  ///< (anchor id, tag id)
+  /// True when the range may be used; a refused one is counted in `stats` against its anchor
+  /// (innovation: failed the gate; quarantine: held back).
+  bool admit(const Link& link, double innovation, bool in_gate, int readmit, double tolerance,
+             EstimatorStatistics& stats);
+  void clear() { held_.clear(); }
+
+ private:
+  std::map<Link, int> held_;  ///< link -> in-gate ranges seen since it was gated
+};
+
+/// uwb-ekf's learning (the learning start's statistics `learnt`): each range corrected by the
+/// learnt scale (and biases with calib_bias) through `noise`, sigma widened and q raised to what
+/// was learnt, never below their start values.
+void learnRangeFilterNoise(const EstimatorStatistics& learnt, UwbEkfParams& params,
+                           RangeNoiseModel& noise, EstimatorStatistics& stats);
+
 class UwbEkf : public UwbEstimator {
  public:
   UwbEkf(const UwbEkfParams& params, const EstimatorContext& context);
@@ -141,7 +163,7 @@ class UwbEkf : public UwbEstimator {
   HeadingFromMotion heading_;
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
-  std::map<int, int> quarantine_;  ///< anchor -> in-gate ranges seen since it was gated
+  RangeQuarantine quarantine_;     ///< by anchor
   RangeNoiseModel noise_;          ///< the learnt bias and scale each range is corrected by
   LearningStart start_;
   LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learn(s); };
