@@ -94,6 +94,9 @@ void ImportCommand::declare(CLI::App& parser) {
                   "csv: the scanner's maximum range [m] (default: the longest range in the file)");
   cmd->add_option("--map", csv_.map, "csv: an occupancy map file for the methods that need one");
   cmd->add_option("--name", csv_.name, "csv: dataset name (default: the output folder's)");
+  cmd->add_option("--yaw-offset", lias_.yaw_offset_deg,
+                  "lias, static runs: heading = the README's yaw + this [deg] (default: the "
+                  "motion capture's frame found on the dynamic run beside the Static folder)");
   cmd->add_option("--readme", lias_.readme,
                   "lias: the README with the anchor and tag coordinates (default: "
                   "Planar_Dataset/<Dynamic|Static>/README.md above the file)");

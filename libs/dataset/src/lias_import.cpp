@@ -295,6 +295,22 @@ double median(std::vector<double> v) {
   return *mid;
 }
 
+// A dynamic run's motion-capture frame: the tags' height (the capture's median z) and the
+// convention chooseConvention finds for it.
+struct DynamicFrame {
+  std::string uwb_file;
+  double height = 0.0;
+  Convention conv;
+};
+
+// The motion capture's file for a dynamic run's UWB file: motion_capture_<rest> beside it.
+std::string mocapFileFor(const std::string& uwb_file) {
+  const std::string name = fs::path(uwb_file).filename().string();
+  if (name.rfind("UWB_", 0) != 0)
+    throwInputError(uwb_file, 0, "a dynamic run's file name starts with 'UWB_'");
+  return (fs::path(uwb_file).parent_path() / ("motion_capture_" + name.substr(4))).string();
+}
+
 struct StaticName {
   std::string section;  ///< "/8/14"
   int pose = 0;
@@ -309,6 +325,36 @@ std::optional<StaticName> parseStaticName(const std::string& file) {
   // The numbers are digits only (the pattern), but may be too long for an int.
   return StaticName{"/" + m[1].str() + "/" + m[2].str(), parseId(m[3].str(), file, 0, "pos"),
                     parseNumber(m[4].str(), file, 0, "deg")};
+}
+
+// The frame of the dynamic run beside a static run (<root>/Dynamic/UWB_dynamic_exp_*.csv and its
+// motion capture, the first by name): the static README's poses come from the same motion
+// capture, so its heading convention and the tags' height carry over. Nothing when there is none.
+std::optional<DynamicFrame> dynamicRunFrame(const std::string& static_file) {
+  const fs::path dir = fs::absolute(static_file).parent_path().parent_path() / "Dynamic";
+  std::vector<std::string> runs;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind("UWB_dynamic_exp_", 0) == 0 &&
+        fs::is_regular_file(mocapFileFor(e.path().string()), ec))
+      runs.push_back(e.path().string());
+  }
+  if (runs.empty()) return std::nullopt;
+  std::sort(runs.begin(), runs.end());
+  DynamicFrame f;
+  f.uwb_file = runs.front();
+  ImportSummary ignored;
+  const Setup setup = readSetup(findReadme(f.uwb_file, "Dynamic"), "");
+  const auto uwb = readUwb(f.uwb_file, ignored);
+  const auto mocap = readMocap(mocapFileFor(f.uwb_file), ignored);
+  std::vector<double> z;
+  for (const auto& r : mocap) z.push_back(r.p.z());
+  f.height = median(z);
+  std::vector<Convention> all;
+  f.conv = chooseConvention(uwb, mocap, setup, f.height, &all);
+  if (!std::isfinite(f.conv.median_residual)) return std::nullopt;
+  return f;
 }
 
 }  // namespace
@@ -361,11 +407,7 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
   m.comments.push_back("Anchor and tag coordinates from " + fs::absolute(readme).string());
   char buf[400];
   if (!static_name) {
-    std::string mocap_file = fs::path(uwb_file).filename().string();
-    if (mocap_file.rfind("UWB_", 0) != 0)
-      throwInputError(uwb_file, 0, "a dynamic run's file name starts with 'UWB_'");
-    mocap_file =
-        (fs::path(uwb_file).parent_path() / ("motion_capture_" + mocap_file.substr(4))).string();
+    const std::string mocap_file = mocapFileFor(uwb_file);
     const auto mocap = readMocap(mocap_file, summary);
     std::vector<double> z;
     for (const auto& r : mocap) z.push_back(r.p.z());
@@ -407,34 +449,44 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
       throwInputError(readme, 0,
                       "pose " + std::to_string(static_name->pose) + " has no row near " +
                           std::to_string(static_name->deg) + " degrees");
+    // The README's yaw is the motion capture's; the dynamic run beside says how that maps to the
+    // tags' frame (on the shared copy: +6 degrees), unless --yaw-offset gives it.
+    std::optional<DynamicFrame> frame;
+    if (!params.tag_height || !params.yaw_offset_deg) frame = dynamicRunFrame(uwb_file);
     if (params.tag_height) {
       height = *params.tag_height;
+    } else if (frame) {
+      height = frame->height;
     } else {
-      // The dynamic runs' motion capture, when beside the static folder, gives the height.
-      const fs::path dyn = fs::absolute(uwb_file).parent_path().parent_path() / "Dynamic";
-      std::vector<double> z;
-      std::error_code ec;
-      for (const auto& e : fs::directory_iterator(dyn, ec)) {
-        const std::string n = e.path().filename().string();
-        if (n.rfind("motion_capture_", 0) != 0) continue;
-        ImportSummary ignored;
-        for (const auto& r : readMocap(e.path().string(), ignored)) z.push_back(r.p.z());
-        break;
-      }
-      if (z.empty())
-        throwInputError(uwb_file, 0,
-                        "a static run's tag height is not in its README: give --tag-height, or "
-                        "keep the Dynamic folder (its motion capture) beside Static");
-      height = median(z);
+      throwInputError(uwb_file, 0,
+                      "a static run's tag height is not in its README: give --tag-height, or "
+                      "keep the Dynamic folder (its motion capture) beside Static");
     }
-    const Eigen::Vector3d pose(row->y(), row->z(), wrapAngle(row->x() * M_PI / 180.0));
+    std::string heading_from;
+    if (params.yaw_offset_deg) {
+      conv.yaw_offset = *params.yaw_offset_deg * M_PI / 180.0;
+      heading_from = "--yaw-offset";
+    } else if (frame) {
+      conv = frame->conv;
+      heading_from =
+          "the motion capture's frame found on " + fs::path(frame->uwb_file).filename().string();
+    } else {
+      heading_from =
+          "unchecked: no dynamic run beside to find the motion capture's frame on; give "
+          "--yaw-offset";
+    }
+    const Eigen::Vector3d pose(
+        row->y(), row->z(), wrapAngle(conv.yaw_sign * row->x() * M_PI / 180.0 + conv.yaw_offset));
     reference.push_back({uwb.front().t, pose});
     reference.push_back({uwb.back().t, pose});
     m.gt_max_gap = uwb.back().t - uwb.front().t + 1.0;
     std::snprintf(buf, sizeof buf,
-                  "Static pose %d at %g deg: x %.4f y %.4f yaw %.3f deg (README); tag height "
-                  "%.3f m (%s)",
-                  static_name->pose, static_name->deg, pose.x(), pose.y(), row->x(), height,
+                  "Static pose %d at %g deg: x %.4f y %.4f yaw %.3f deg (README), heading %.3f "
+                  "deg = %+g x yaw %+.1f deg (%s), tags' lever arm y taken %s; tag height %.3f m "
+                  "(%s)",
+                  static_name->pose, static_name->deg, pose.x(), pose.y(), row->x(),
+                  pose.z() * 180.0 / M_PI, conv.yaw_sign, conv.yaw_offset * 180.0 / M_PI,
+                  heading_from.c_str(), conv.y_sign > 0 ? "as given" : "mirrored", height,
                   params.tag_height ? "given" : "median z of the dynamic run's motion capture");
     summary.notes.emplace_back(buf);
     m.comments.emplace_back(buf);

@@ -14,7 +14,11 @@
 //    arms (the body frame may be flipped), and the clock offset between motion capture and UWB:
 //    the candidates are scored by the median range residual against the reference;
 //  - the tags' height: the motion capture's median z (a static run takes it from the dynamic
-//    run's motion capture beside it, or from --tag-height).
+//    run's motion capture beside it, or from --tag-height);
+//  - a static run's heading: the README's yaw comes from the same motion capture, so the
+//    convention found on the dynamic run beside it (heading sign, lever-arm mirror, heading
+//    offset) applies to it too (or --yaw-offset). On the shared copy the offset is +6 degrees:
+//    taken as the README's yaw, the static runs' three-tag headings were 4-11 degrees off.
 //
 // Output: uwb.rawlog (tag k's ranges as sensor UWB / UWB_TAG<k>), anchors.csv,
 // ground_truth.tum (heading included) and dataset.ini listing the three tags.
@@ -31,6 +35,9 @@ struct LiasImportParams {
   std::optional<double> tag_height;  ///< tags' height above the anchors' z datum [m]
   std::string bias_csv;              ///< per-link bias table to copy and name in the manifest
   std::string readme;                ///< the README with the coordinates (default: found)
+  /// Static runs: robot heading = the README's yaw + this [deg]; default: the offset (and
+  /// heading sign, lever-arm mirror) found on the dynamic run beside the Static folder.
+  std::optional<double> yaw_offset_deg;
 };
 
 /// Seconds since 1970-01-01 of "YYYY-MM-DD H:MM:SS[.fff]" (read as UTC); nothing when the text
