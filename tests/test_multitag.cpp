@@ -99,33 +99,48 @@ TEST(Multitag, OneTagKeepsTheGivenHeading) {
   EXPECT_DOUBLE_EQ(fix->covariance(2, 2), M_PI * M_PI);
 }
 
+// The heading error of `method` on `ds` from 1 s after its first estimate while the robot still
+// stands (until 9.5 s): every estimate there must be finite and have a heading.
+struct StandingHeading {
+  double mean_deg = 0.0, worst_deg = 0.0;
+  long n = 0;
+};
+StandingHeading headingWhileStanding(const data::Dataset& ds, const std::string& method) {
+  const auto run = eval::runMethod(ds, method, 1);
+  StandingHeading h;
+  EXPECT_FALSE(run.trajectory.empty()) << method;
+  if (run.trajectory.empty()) return h;
+  const double t0 = run.trajectory.front().t;
+  double sum = 0.0;
+  for (const auto& e : run.trajectory) {
+    EXPECT_TRUE(e.pose.allFinite() && e.covariance.allFinite()) << method << " " << e.t;
+    if (e.t < t0 + 1.0 || e.t > ds.start_time + 9.5) continue;
+    const auto truth = eval::interpolateGroundTruth(ds.ground_truth, e.t, 1.0);
+    EXPECT_TRUE(truth.has_value()) << e.t;
+    EXPECT_TRUE(e.heading_valid) << method << " " << e.t;
+    if (!truth || !e.heading_valid) continue;
+    const double err = std::abs(wrapAngle(e.pose.z() - truth->z())) * 180.0 / M_PI;
+    h.worst_deg = std::max(h.worst_deg, err);
+    sum += err;
+    ++h.n;
+  }
+  h.mean_deg = h.n > 0 ? sum / static_cast<double>(h.n) : 0.0;
+  return h;
+}
+
 // The robot stands still for the first 10 s: with three tags the heading is known within a
 // second of the first estimate, with no start pose given; a single-tag filter has none.
 TEST(Multitag, HeadingConvergesWithinOneSecondWithoutMotion) {
   const data::Dataset ds = test::simulatedScenario("multitag_room", 1);
   ASSERT_EQ(ds.manifest.tags.size(), 3u);
-  const auto run = eval::runMethod(ds, "uwb-multitag", 1);
-  ASSERT_FALSE(run.trajectory.empty());
-  const double t0 = run.trajectory.front().t;
-  double worst = 0.0, sum = 0.0;
-  long n = 0;
-  for (const auto& e : run.trajectory) {
-    if (e.t < t0 + 1.0 || e.t > ds.start_time + 9.5) continue;
-    const auto truth = eval::interpolateGroundTruth(ds.ground_truth, e.t, 1.0);
-    ASSERT_TRUE(truth.has_value());
-    ASSERT_TRUE(e.heading_valid);
-    const double err = std::abs(wrapAngle(e.pose.z() - truth->z()));
-    worst = std::max(worst, err);
-    sum += err;
-    ++n;
-  }
+  const auto h = headingWhileStanding(ds, "uwb-multitag");
   std::printf(
       "[ HEADING  ] uwb-multitag, standing still, 1 s after its first estimate: mean "
       "|heading error| %.2f deg, worst %.2f deg over %ld estimates\n",
-      sum / n * 180.0 / M_PI, worst * 180.0 / M_PI, n);
-  EXPECT_GT(n, 50);
-  EXPECT_LT(sum / n * 180.0 / M_PI, 5.0);
-  EXPECT_LT(worst * 180.0 / M_PI, 15.0);
+      h.mean_deg, h.worst_deg, h.n);
+  EXPECT_GT(h.n, 50);
+  EXPECT_LT(h.mean_deg, 5.0);
+  EXPECT_LT(h.worst_deg, 15.0);
   // The single-tag filter (uwb-ekf on its primary tag: the others are counted as secondary_tag)
   // has no heading while the robot stands still.
   const auto ekf = eval::runMethod(ds, "uwb-ekf:tags=primary", 1);
@@ -175,33 +190,18 @@ TEST(UwbEkfMultitag, TwoTagsGiveTheHeadingWithinOneSecondWithoutMotion) {
                                  }),
                   ds.events.end());
   ASSERT_EQ(ds.manifest.tags.size(), 2u);
-  const auto run = eval::runMethod(ds, "uwb-ekf:start=fix", 1);
-  ASSERT_FALSE(run.trajectory.empty());
-  const double t0 = run.trajectory.front().t;
-  double worst = 0.0, sum = 0.0;
-  long n = 0;
-  for (const auto& e : run.trajectory) {
-    ASSERT_TRUE(e.pose.allFinite() && e.covariance.allFinite()) << e.t;
-    if (e.t < t0 + 1.0 || e.t > ds.start_time + 9.5) continue;
-    const auto truth = eval::interpolateGroundTruth(ds.ground_truth, e.t, 1.0);
-    ASSERT_TRUE(truth.has_value());
-    ASSERT_TRUE(e.heading_valid) << e.t;
-    const double err = std::abs(wrapAngle(e.pose.z() - truth->z()));
-    worst = std::max(worst, err);
-    sum += err;
-    ++n;
-  }
+  const auto h = headingWhileStanding(ds, "uwb-ekf:start=fix");
   const auto two = eval::evaluateMethod(ds, "uwb-ekf:start=fix", 1, 1);
   const auto one = eval::evaluateMethod(ds, "uwb-ekf:start=fix,tags=primary", 1, 1);
   std::printf(
       "[ HEADING  ] uwb-ekf, two tags, standing still, 1 s after its first estimate: mean "
       "|heading error| %.2f deg, worst %.2f deg over %ld estimates; whole run rmse_2d %.4f m, "
       "yaw rmse %.2f deg (primary tag alone: %.4f m)\n",
-      sum / n * 180.0 / M_PI, worst * 180.0 / M_PI, n, two.metrics.rmse_2d,
-      two.metrics.rmse_yaw_deg, one.metrics.rmse_2d);
-  EXPECT_GT(n, 50);
-  EXPECT_LT(sum / n * 180.0 / M_PI, 5.0);
-  EXPECT_LT(worst * 180.0 / M_PI, 15.0);
+      h.mean_deg, h.worst_deg, h.n, two.metrics.rmse_2d, two.metrics.rmse_yaw_deg,
+      one.metrics.rmse_2d);
+  EXPECT_GT(h.n, 50);
+  EXPECT_LT(h.mean_deg, 5.0);
+  EXPECT_LT(h.worst_deg, 15.0);
   EXPECT_LT(two.metrics.rmse_2d, 0.6 * one.metrics.rmse_2d);
   EXPECT_LT(two.metrics.rmse_yaw_deg, 8.0);
   const auto primary = eval::runMethod(ds, "uwb-ekf:start=fix,tags=primary", 1);
