@@ -364,6 +364,20 @@ TEST(Lias, AStaticRunsHeadingTakesTheMotionCapturesFrame) {
   p.yaw_offset_deg = 6.0;
   const auto given = data::importLias(uwb, (dir / "b").string(), p);
   EXPECT_NEAR(headingOf(given.manifest), 16.0, 1e-5);
+  // A motion capture beside without its run's ranges gives the height, not the frame.
+  std::filesystem::create_directories(dir / "Dynamic");
+  test::writeText(
+      dir / "Dynamic" / "motion_capture_dynamic_exp_x.csv",
+      "time,x,y,z,rotation,,,\n2022-08-15 9:42:22.968,0,0,0.9,1,0,0,0\n"
+      "2022-08-15 9:42:22.978,0,0,0.9,1,0,0,0\n2022-08-15 9:42:22.988,0,0,0.9,1,0,0,0\n");
+  const auto beside = data::importLias(uwb, (dir / "c").string());
+  EXPECT_NEAR(headingOf(beside.manifest), 10.0, 1e-5);
+  const auto ds = data::loadDataset(beside.manifest, "");
+  EXPECT_NEAR(ds.manifest.tags.at(0).z(), 0.9, 1e-9);
+  said = false;
+  for (const auto& n : beside.notes)
+    said |= n.find("unchecked: no dynamic run's ranges") != std::string::npos;
+  EXPECT_TRUE(said);
 }
 
 // The shared recordings: biases calibrated on the three static runs at known poses, applied to

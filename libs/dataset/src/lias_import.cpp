@@ -295,12 +295,13 @@ double median(std::vector<double> v) {
   return *mid;
 }
 
-// A dynamic run's motion-capture frame: the tags' height (the capture's median z) and the
-// convention chooseConvention finds for it.
+// What a static run takes from the dynamic run beside it: the tags' height (the motion
+// capture's median z) and, when the run's ranges are there too, the convention chooseConvention
+// finds for it (the static README's yaw is the same motion capture's).
 struct DynamicFrame {
-  std::string uwb_file;
   double height = 0.0;
-  Convention conv;
+  std::optional<Convention> conv;
+  std::string source;  ///< the file the convention was found on, or why there is none
 };
 
 // The motion capture's file for a dynamic run's UWB file: motion_capture_<rest> beside it.
@@ -327,33 +328,48 @@ std::optional<StaticName> parseStaticName(const std::string& file) {
                     parseNumber(m[4].str(), file, 0, "deg")};
 }
 
-// The frame of the dynamic run beside a static run (<root>/Dynamic/UWB_dynamic_exp_*.csv and its
-// motion capture, the first by name): the static README's poses come from the same motion
-// capture, so its heading convention and the tags' height carry over. Nothing when there is none.
+// The frame of the dynamic runs beside a static run (<root>/Dynamic): the height from the first
+// motion capture by name, the convention from the first UWB_dynamic_exp_*.csv that has its motion
+// capture. Nothing when there is no motion capture; a dynamic run that cannot be read leaves the
+// convention out and says why.
 std::optional<DynamicFrame> dynamicRunFrame(const std::string& static_file) {
   const fs::path dir = fs::absolute(static_file).parent_path().parent_path() / "Dynamic";
-  std::vector<std::string> runs;
+  std::vector<std::string> runs, captures;
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string n = e.path().filename().string();
+    if (n.rfind("motion_capture_", 0) == 0) captures.push_back(e.path().string());
     if (n.rfind("UWB_dynamic_exp_", 0) == 0 &&
         fs::is_regular_file(mocapFileFor(e.path().string()), ec))
       runs.push_back(e.path().string());
   }
-  if (runs.empty()) return std::nullopt;
+  if (captures.empty()) return std::nullopt;
+  std::sort(captures.begin(), captures.end());
   std::sort(runs.begin(), runs.end());
   DynamicFrame f;
-  f.uwb_file = runs.front();
   ImportSummary ignored;
-  const Setup setup = readSetup(findReadme(f.uwb_file, "Dynamic"), "");
-  const auto uwb = readUwb(f.uwb_file, ignored);
-  const auto mocap = readMocap(mocapFileFor(f.uwb_file), ignored);
+  const std::string capture = runs.empty() ? captures.front() : mocapFileFor(runs.front());
+  const auto mocap = readMocap(capture, ignored);
   std::vector<double> z;
   for (const auto& r : mocap) z.push_back(r.p.z());
   f.height = median(z);
-  std::vector<Convention> all;
-  f.conv = chooseConvention(uwb, mocap, setup, f.height, &all);
-  if (!std::isfinite(f.conv.median_residual)) return std::nullopt;
+  if (runs.empty()) {
+    f.source = "no dynamic run's ranges beside to find the motion capture's frame on";
+    return f;
+  }
+  try {
+    const Setup setup = readSetup(findReadme(runs.front(), "Dynamic"), "");
+    const auto uwb = readUwb(runs.front(), ignored);
+    std::vector<Convention> all;
+    const Convention c = chooseConvention(uwb, mocap, setup, f.height, &all);
+    if (std::isfinite(c.median_residual)) f.conv = c;
+    f.source =
+        f.conv
+            ? "the motion capture's frame found on " + fs::path(runs.front()).filename().string()
+            : fs::path(runs.front()).filename().string() + " does not overlap its motion capture";
+  } catch (const InputError& e) {
+    f.source = std::string("the dynamic run beside could not be read: ") + e.what();
+  }
   return f;
 }
 
@@ -466,14 +482,13 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
     if (params.yaw_offset_deg) {
       conv.yaw_offset = *params.yaw_offset_deg * M_PI / 180.0;
       heading_from = "--yaw-offset";
-    } else if (frame) {
-      conv = frame->conv;
-      heading_from =
-          "the motion capture's frame found on " + fs::path(frame->uwb_file).filename().string();
+    } else if (frame && frame->conv) {
+      conv = *frame->conv;
+      heading_from = frame->source;
     } else {
       heading_from =
-          "unchecked: no dynamic run beside to find the motion capture's frame on; give "
-          "--yaw-offset";
+          "unchecked: " + (frame ? frame->source : std::string("no dynamic run beside")) +
+          "; give --yaw-offset";
     }
     const Eigen::Vector3d pose(
         row->y(), row->z(), wrapAngle(conv.yaw_sign * row->x() * M_PI / 180.0 + conv.yaw_offset));
@@ -482,14 +497,14 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
     m.gt_max_gap = uwb.back().t - uwb.front().t + 1.0;
     std::snprintf(buf, sizeof buf,
                   "Static pose %d at %g deg: x %.4f y %.4f yaw %.3f deg (README), heading %.3f "
-                  "deg = %+g x yaw %+.1f deg (%s), tags' lever arm y taken %s; tag height %.3f m "
-                  "(%s)",
+                  "deg = %+g x yaw %+.1f deg, tags' lever arm y taken %s; tag height %.3f m (%s)",
                   static_name->pose, static_name->deg, pose.x(), pose.y(), row->x(),
                   pose.z() * 180.0 / M_PI, conv.yaw_sign, conv.yaw_offset * 180.0 / M_PI,
-                  heading_from.c_str(), conv.y_sign > 0 ? "as given" : "mirrored", height,
+                  conv.y_sign > 0 ? "as given" : "mirrored", height,
                   params.tag_height ? "given" : "median z of the dynamic run's motion capture");
-    summary.notes.emplace_back(buf);
-    m.comments.emplace_back(buf);
+    const std::string note = std::string(buf) + "; heading: " + heading_from;
+    summary.notes.push_back(note);
+    m.comments.push_back(note);
   }
 
   std::vector<loc::Event> events;
