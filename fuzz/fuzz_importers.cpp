@@ -7,7 +7,8 @@
 //   4 Plaza with its reference and beacons in a .mat (read by libmatio);
 //   5 CSV: ranges, anchors, odometry, imu, reference, scans;
 //   6 libRSF: X_Input.txt, X_GT.txt;
-//   7 LIAS: its README, a dynamic UWB file and its motion capture.
+//   7 LIAS: its README, a dynamic UWB file and its motion capture; then, when given, the static
+//     README and a static UWB file, imported beside that dynamic run (which gives its frame).
 #include <unistd.h>
 
 #include <cstdint>
@@ -43,7 +44,7 @@ std::vector<std::string> splitParts(const std::string& text) {
 void writeParts(const fs::path& dir, const std::vector<std::string>& names,
                 const std::vector<std::string>& parts) {
   for (size_t i = 0; i < names.size() && i < parts.size(); ++i)
-    std::ofstream(dir / names[i], std::ios::binary) << parts[i];
+    if (!names[i].empty()) std::ofstream(dir / names[i], std::ios::binary) << parts[i];
 }
 
 }  // namespace
@@ -102,6 +103,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
                    {"Planar_Dataset/Dynamic/README.md", "Dynamic/UWB_dynamic_exp_f.csv",
                     "Dynamic/motion_capture_dynamic_exp_f.csv"},
                    parts);
+        if (parts.size() > 4) {
+          fs::create_directories(in / "Planar_Dataset" / "Static");
+          fs::create_directories(in / "Static");
+          writeParts(in,
+                     {"", "", "", "Planar_Dataset/Static/README.md",
+                      "Static/UWB_static_exp_8_14_pos1_deg_0.csv"},
+                     parts);
+          try {
+            uwbloc::data::importLias(
+                (in / "Static" / "UWB_static_exp_8_14_pos1_deg_0.csv").string(),
+                (out / "static").string());
+          } catch (const uwbloc::data::InputError&) {
+          }
+        }
         uwbloc::data::importLias((in / "Dynamic" / "UWB_dynamic_exp_f.csv").string(), out.string());
         break;
       }

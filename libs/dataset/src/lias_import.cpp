@@ -328,6 +328,27 @@ std::optional<StaticName> parseStaticName(const std::string& file) {
                     parseNumber(m[4].str(), file, 0, "deg")};
 }
 
+// The README's setup must hold tags 0-2 and anchors 0-7, once each (a row's 24 ranges are anchor
+// k / 3 to tag k % 3); `section` is the static README's "/<month>/<day>", empty for the dynamic.
+void requireFullSetup(const Setup& setup, const std::string& readme, const std::string& section) {
+  if (setup.tags.size() != kTags || setup.anchors.size() != kAnchors)
+    throwInputError(readme, 0,
+                    "expected the coordinates of 3 tags and 8 anchors" +
+                        (section.empty() ? std::string()
+                                         : " under a '### .../" + section.substr(1) + "' heading") +
+                        ", found " + std::to_string(setup.tags.size()) + " and " +
+                        std::to_string(setup.anchors.size()));
+  // A row's 24 ranges are anchor k / 3 to tag k % 3: the numbers must be 0-2 and 0-7, once each.
+  std::string ids;
+  for (const auto& a : setup.anchors) ids += " " + std::to_string(a.id);
+  for (int k = 0; k < kAnchors; ++k)
+    if (std::count_if(setup.anchors.begin(), setup.anchors.end(),
+                      [k](const uwb::Anchor& a) { return a.id == k; }) != 1)
+      throwInputError(readme, 0, "expected anchors numbered 0 to 7, once each; found" + ids);
+  for (int k = 0; k < kTags; ++k)
+    if (!setup.tags.count(k)) throwInputError(readme, 0, "expected tags numbered 0 to 2");
+}
+
 // The frame of the dynamic runs beside a static run (<root>/Dynamic): the height from the first
 // motion capture by name, the convention from the first UWB_dynamic_exp_*.csv that has its motion
 // capture. Nothing when there is no motion capture; a dynamic run that cannot be read leaves the
@@ -358,7 +379,9 @@ std::optional<DynamicFrame> dynamicRunFrame(const std::string& static_file) {
     return f;
   }
   try {
-    const Setup setup = readSetup(findReadme(runs.front(), "Dynamic"), "");
+    const std::string readme = findReadme(runs.front(), "Dynamic");
+    const Setup setup = readSetup(readme, "");
+    requireFullSetup(setup, readme, "");
     const auto uwb = readUwb(runs.front(), ignored);
     std::vector<Convention> all;
     const Convention c = chooseConvention(uwb, mocap, setup, f.height, &all);
@@ -396,23 +419,7 @@ ImportSummary importLias(const std::string& uwb_file, const std::string& out_dir
   const std::string kind = static_name ? "Static" : "Dynamic";
   const std::string readme = params.readme.empty() ? findReadme(uwb_file, kind) : params.readme;
   const Setup setup = readSetup(readme, static_name ? static_name->section : "");
-  if (setup.tags.size() != kTags || setup.anchors.size() != kAnchors)
-    throwInputError(
-        readme, 0,
-        "expected the coordinates of 3 tags and 8 anchors" +
-            (static_name ? " under a '### .../" + static_name->section.substr(1) + "' heading"
-                         : std::string()) +
-            ", found " + std::to_string(setup.tags.size()) + " and " +
-            std::to_string(setup.anchors.size()));
-  // A row's 24 ranges are anchor k / 3 to tag k % 3: the numbers must be 0-2 and 0-7, once each.
-  std::string ids;
-  for (const auto& a : setup.anchors) ids += " " + std::to_string(a.id);
-  for (int k = 0; k < kAnchors; ++k)
-    if (std::count_if(setup.anchors.begin(), setup.anchors.end(),
-                      [k](const uwb::Anchor& a) { return a.id == k; }) != 1)
-      throwInputError(readme, 0, "expected anchors numbered 0 to 7, once each; found" + ids);
-  for (int k = 0; k < kTags; ++k)
-    if (!setup.tags.count(k)) throwInputError(readme, 0, "expected tags numbered 0 to 2");
+  requireFullSetup(setup, readme, static_name ? static_name->section : "");
   const std::vector<UwbRow> uwb = readUwb(uwb_file, summary);
 
   std::vector<TimedPose> reference;
