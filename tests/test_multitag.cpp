@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <tuple>
 
@@ -204,6 +205,28 @@ TEST(UwbEkfMultitag, TwoTagsGiveTheHeadingWithinOneSecondWithoutMotion) {
   EXPECT_LT(h.worst_deg, 15.0);
   EXPECT_LT(two.metrics.rmse_2d, 0.6 * one.metrics.rmse_2d);
   EXPECT_LT(two.metrics.rmse_yaw_deg, 8.0);
+  // Bad ranges among every tag's are rejected and counted; no estimate is ever non-finite.
+  data::Dataset bad = ds;
+  std::vector<loc::Event> events;
+  long k = 0;
+  for (const auto& e : ds.events) {
+    events.push_back(e);
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && ++k % 37 == 0) {
+      uwb::Range x = *r;
+      x.range = (k / 37) % 3 == 0 ? std::numeric_limits<double>::quiet_NaN()
+                                  : ((k / 37) % 3 == 1 ? -1.0 : x.range);
+      if ((k / 37) % 3 == 2) x.anchor_id = 99;
+      events.emplace_back(x);
+    }
+  }
+  bad.events = events;
+  const auto corrupted = eval::runMethod(bad, "uwb-ekf", 1);
+  ASSERT_FALSE(corrupted.trajectory.empty());
+  for (const auto& e : corrupted.trajectory)
+    ASSERT_TRUE(e.pose.allFinite() && e.covariance.allFinite()) << e.t;
+  EXPECT_EQ(corrupted.statistics.rejected.count("non_finite_estimate"), 0u);
+  for (const char* reason : {"non_finite", "negative_range", "unknown_anchor"})
+    EXPECT_GT(corrupted.statistics.rejected.count(reason), 0u) << reason;
   const auto primary = eval::runMethod(ds, "uwb-ekf:start=fix,tags=primary", 1);
   EXPECT_GT(primary.statistics.rejected.at("secondary_tag"), 0);
   for (const auto& e : primary.trajectory) {
