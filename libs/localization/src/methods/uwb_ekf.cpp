@@ -69,14 +69,17 @@ void UwbEkf::correctWithRange(const AcceptedRange& r, double y, const RangePredi
   kalman::josephUpdate<4, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance(r)));
 }
 
-double UwbEkf::predictedPositionStd(double t) const {
-  // Only the covariance is predicted: F P F^T + Q.
+double predictedPositionStd(const Eigen::Matrix4d& p, double dt, const UwbEkfParams& params) {
   Eigen::Matrix4d f, q;
-  constantVelocityModel(std::max(0.0, t - t_), params_.accel_psd, f, q, params_.velocity_tau);
-  const Eigen::Matrix2d pos = (f * p_ * f.transpose() + q).topLeftCorner<2, 2>();
+  constantVelocityModel(std::max(0.0, dt), params.accel_psd, f, q, params.velocity_tau);
+  const Eigen::Matrix2d pos = (f * p * f.transpose() + q).topLeftCorner<2, 2>();
   const double half_trace = 0.5 * pos.trace();
   const double det = pos.determinant();
   return std::sqrt(half_trace + std::sqrt(std::max(half_trace * half_trace - det, 0.0)));
+}
+
+double readmitTolerance(const UwbEkfParams& params) {
+  return std::max(params.readmit_tol, 3.0 * params.front.sigmaValue());
 }
 
 PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
@@ -123,7 +126,7 @@ std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
   if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
 
   if (initialised_ && params_.reinit_std > 0.0 &&
-      predictedPositionStd(accepted->measurement.t) > params_.reinit_std) {
+      predictedPositionStd(p_, accepted->measurement.t - t_, params_) > params_.reinit_std) {
     ++stats_.events["reinitialised_after_outage"];
     reset();
   }
@@ -176,9 +179,8 @@ bool RangeQuarantine::admit(const Link& link, double innovation, bool in_gate, i
 }
 
 bool UwbEkf::admit(int id, double innovation, bool in_gate) {
-  // A quarantined anchor must agree within max(readmit_tol, 3 sigma) to count towards readmission.
-  const double tolerance = std::max(params_.readmit_tol, 3.0 * params_.front.sigmaValue());
-  return quarantine_.admit({id, 0}, innovation, in_gate, params_.readmit, tolerance, stats_);
+  return quarantine_.admit({id, 0}, innovation, in_gate, params_.readmit, readmitTolerance(params_),
+                           stats_);
 }
 
 }  // namespace uwbloc::loc

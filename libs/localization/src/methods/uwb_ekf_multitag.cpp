@@ -8,14 +8,16 @@
 #include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/pose2.hpp"
+#include "uwbloc/uwb/range_model.hpp"
 
 namespace uwbloc::loc {
 
 namespace {
 constexpr int kTheta = 4;  ///< the heading's index in the state
 constexpr int kOmega = 5;
-constexpr double kMultitagHuber = 2.0;  ///< the start's Gauss-Newton: uwb-multitag's default
-constexpr int kMultitagIterations = 15;
+
+// The (x, y, theta) block of the state's covariance.
+constexpr int kPoseIndex[3] = {0, 1, kTheta};
 }  // namespace
 
 std::unique_ptr<Estimator> makeUwbEkf(const UwbEkfMethodParams& params,
@@ -38,16 +40,12 @@ UwbEkfMultitag::UwbEkfMultitag(const UwbEkfMethodParams& params, const Estimator
 double UwbEkfMultitag::rangeModel(const State& x, const Eigen::Vector3d& tag_on_robot,
                                   const Eigen::Vector3d& anchor,
                                   Eigen::Matrix<double, 1, 6>* jacobian) {
-  const double c = std::cos(x(kTheta)), s = std::sin(x(kTheta));
-  const Eigen::Vector3d& l = tag_on_robot;
-  const Eigen::Vector3d tag(x(0) + c * l.x() - s * l.y(), x(1) + s * l.x() + c * l.y(), l.z());
-  const Eigen::Vector3d d = tag - anchor;
-  const double h = std::max(d.norm(), 1e-6);
+  Eigen::RowVector3d d_pose;
+  const double h = uwb::predictRange(Eigen::Vector3d(x(0), x(1), x(kTheta)), tag_on_robot, anchor,
+                                     jacobian ? &d_pose : nullptr);
   if (jacobian) {
     jacobian->setZero();
-    (*jacobian)(0) = d.x() / h;
-    (*jacobian)(1) = d.y() / h;
-    (*jacobian)(kTheta) = (d.x() * (-s * l.x() - c * l.y()) + d.y() * (c * l.x() - s * l.y())) / h;
+    for (int i = 0; i < 3; ++i) (*jacobian)(kPoseIndex[i]) = d_pose(i);
   }
   return h;
 }
@@ -87,15 +85,6 @@ void UwbEkfMultitag::predictTo(double t) {
   t_ = t;
 }
 
-double UwbEkfMultitag::predictedPositionStd(double t) const {
-  Eigen::Matrix4d f, q;
-  constantVelocityModel(std::max(0.0, t - t_), params_.ekf.accel_psd, f, q,
-                        params_.ekf.velocity_tau);
-  const Eigen::Matrix4d p4 = p_.topLeftCorner<4, 4>();
-  const Eigen::Matrix2d pos = (f * p4 * f.transpose() + q).topLeftCorner<2, 2>();
-  return std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(pos).eigenvalues().maxCoeff());
-}
-
 bool UwbEkfMultitag::update(const AcceptedRange& r) {
   predictTo(r.measurement.t);
   Eigen::Matrix<double, 1, 6> h;
@@ -106,9 +95,8 @@ bool UwbEkfMultitag::update(const AcceptedRange& r) {
   inn.s(0, 0) = (h * p_ * h.transpose())(0, 0) + variance;
   const bool in_gate =
       uwb::ChiSquareGate(params_.ekf.gate).acceptSquared(inn.y(0) * inn.y(0) / inn.s(0, 0));
-  const double tolerance = std::max(params_.ekf.readmit_tol, 3.0 * params_.ekf.front.sigmaValue());
   if (!quarantine_.admit({r.measurement.anchor_id, r.measurement.tag_id}, inn.y(0), in_gate,
-                         params_.ekf.readmit, tolerance, stats_))
+                         params_.ekf.readmit, readmitTolerance(params_.ekf), stats_))
     return false;
   kalman::josephUpdate<6, 1>(x_, p_, inn, h, Eigen::Matrix<double, 1, 1>(variance));
   x_(kTheta) = wrapAngle(x_(kTheta));
@@ -132,18 +120,17 @@ bool UwbEkfMultitag::initialise(const AcceptedRange& r) {
   } else {
     const auto epoch = init_epochs_.add(r);
     if (!epoch) return false;
-    const auto fix = solveMultitag(*epoch, params_.ekf.front.sigmaValue(), kMultitagHuber,
-                                   kMultitagIterations, std::nullopt);
+    const UwbMultitagParams gn;  // uwb-multitag's Huber threshold and iterations
+    const auto fix = solveMultitag(*epoch, params_.ekf.front.sigmaValue(), gn.huber,
+                                   gn.max_iterations, std::nullopt);
     if (!fix || fix->rms_residual > params_.ekf.init_residual) {
       ++stats_.events["init_fix_refused"];
       return false;
     }
-    x_(0) = fix->pose.x();
-    x_(1) = fix->pose.y();
-    x_(kTheta) = fix->pose.z();
-    const int idx[3] = {0, 1, kTheta};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) p_(idx[i], idx[j]) = fix->covariance(i, j);
+    for (int i = 0; i < 3; ++i) {
+      x_(kPoseIndex[i]) = fix->pose(i);
+      for (int j = 0; j < 3; ++j) p_(kPoseIndex[i], kPoseIndex[j]) = fix->covariance(i, j);
+    }
     t_ = epochTime(*epoch);
   }
   quarantine_.clear();
@@ -156,9 +143,8 @@ PoseEstimate UwbEkfMultitag::output() const {
   PoseEstimate e;
   e.t = t_;
   e.pose = Eigen::Vector3d(x_(0), x_(1), x_(kTheta));
-  const int idx[3] = {0, 1, kTheta};
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) e.covariance(i, j) = p_(idx[i], idx[j]);
+    for (int j = 0; j < 3; ++j) e.covariance(i, j) = p_(kPoseIndex[i], kPoseIndex[j]);
   e.heading_valid = p_(kTheta, kTheta) < kObservedHeadingStd * kObservedHeadingStd;
   return e;
 }
@@ -175,7 +161,8 @@ std::optional<PoseEstimate> UwbEkfMultitag::step(const Event& event) {
   auto accepted = acceptRange(event);
   if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
   if (initialised_ && params_.ekf.reinit_std > 0.0 &&
-      predictedPositionStd(accepted->measurement.t) > params_.ekf.reinit_std) {
+      predictedPositionStd(p_.topLeftCorner<4, 4>(), accepted->measurement.t - t_, params_.ekf) >
+          params_.ekf.reinit_std) {
     ++stats_.events["reinitialised_after_outage"];
     reset();
   }

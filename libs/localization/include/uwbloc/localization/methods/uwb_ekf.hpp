@@ -99,6 +99,14 @@ class RangeQuarantine {
 void learnRangeFilterNoise(const EstimatorStatistics& learnt, UwbEkfParams& params,
                            RangeNoiseModel& noise, EstimatorStatistics& stats);
 
+/// The largest |innovation| that counts towards a quarantined link's readmission:
+/// max(readmit_tol, 3 sigma).
+double readmitTolerance(const UwbEkfParams& params);
+
+/// The std along the major axis of the position of the constant-velocity block `p` ([x y vx vy])
+/// predicted `dt` ahead (covariance only: F P F^T + Q), for the restart after an outage.
+double predictedPositionStd(const Eigen::Matrix4d& p, double dt, const UwbEkfParams& params);
+
 class UwbEkf : public UwbEstimator {
  public:
   UwbEkf(const UwbEkfParams& params, const EstimatorContext& context);
@@ -150,8 +158,6 @@ class UwbEkf : public UwbEstimator {
  private:
   Eigen::Matrix<double, 1, 4> hj_;  ///< the Jacobian of the last predictRange
   bool initialise(const AcceptedRange& r);
-  /// The std along the predicted position's major axis at time t (no update).
-  double predictedPositionStd(double t) const;
   /// One event through the filter (after the learning start).
   std::optional<PoseEstimate> step(const Event& event);
   /// The learnt range model and q into the filter.

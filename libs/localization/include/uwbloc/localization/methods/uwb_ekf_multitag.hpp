@@ -82,7 +82,6 @@ class UwbEkfMultitag : public UwbEstimator {
   void predictTo(double t);
   /// The gate, the quarantine and the update; false when the range was not used.
   bool update(const AcceptedRange& r);
-  double predictedPositionStd(double t) const;
   PoseEstimate output() const;
   void learn(const EstimatorStatistics& learnt);
   double rangeVariance(const AcceptedRange& r) const;
