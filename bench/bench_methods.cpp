@@ -59,8 +59,9 @@ const bool registered = [] {
   for (const std::string spec : {"pf-sir:n=50", "pf-sir:n=100", "pf-ibas+graph:window=10"})
     benchmark::RegisterBenchmark(("mrpt_demo/" + spec).c_str(), replay, spec)
         ->Unit(benchmark::kMillisecond);
-  for (const std::string spec : {"uwb-multitag", "uwb-multitag:smooth=false", "uwb-ekf",
-                                 "uwb-ekf:tags=primary", "uwb-pf", "graph-uwb-odom"})
+  for (const std::string spec :
+       {"uwb-multitag", "uwb-multitag:smooth=false", "uwb-ekf", "uwb-ekf:tags=primary", "uwb-ckf",
+        "uwb-srukf", "uwb-shkf", "federated-ekf", "uwb-pf", "graph-uwb-odom"})
     benchmark::RegisterBenchmark(("multitag_room/" + spec).c_str(), replayMultitag, spec)
         ->Unit(benchmark::kMillisecond);
   return true;

@@ -20,7 +20,7 @@
 #include "uwbloc/evaluation/calibration.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/runner.hpp"
-#include "uwbloc/localization/methods/uwb_ekf_multitag.hpp"
+#include "uwbloc/localization/methods/uwb_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_multitag.hpp"
 #include "uwbloc/uwb/pose2.hpp"
 #include "uwbloc/uwb/range_model.hpp"
@@ -104,6 +104,7 @@ TEST(Multitag, OneTagKeepsTheGivenHeading) {
 // stands (until 9.5 s): every estimate there must be finite and have a heading.
 struct StandingHeading {
   double mean_deg = 0.0, worst_deg = 0.0;
+  double worst_after = 0.0;  ///< when the worst error was, after the first estimate [s]
   long n = 0;
 };
 StandingHeading headingWhileStanding(const data::Dataset& ds, const std::string& method) {
@@ -121,7 +122,10 @@ StandingHeading headingWhileStanding(const data::Dataset& ds, const std::string&
     EXPECT_TRUE(e.heading_valid) << method << " " << e.t;
     if (!truth || !e.heading_valid) continue;
     const double err = std::abs(wrapAngle(e.pose.z() - truth->z())) * 180.0 / M_PI;
-    h.worst_deg = std::max(h.worst_deg, err);
+    if (err > h.worst_deg) {
+      h.worst_deg = err;
+      h.worst_after = e.t - t0;
+    }
     sum += err;
     ++h.n;
   }
@@ -176,13 +180,10 @@ TEST(UwbEkfMultitag, RangeJacobianMatchesNumeric) {
     }
 }
 
-// uwb-ekf on a robot with two tags (multitag_room without its third), started from the first
-// epoch with no start pose: the heading is within a few degrees a second after its first
-// estimate while the robot still stands, and the position beats the same filter on one tag;
-// uwb-ekf on the primary tag alone has no heading until the robot moves.
-TEST(UwbEkfMultitag, TwoTagsGiveTheHeadingWithinOneSecondWithoutMotion) {
+// multitag_room without its third tag.
+data::Dataset twoTagRoom() {
   data::Dataset ds = test::simulatedScenario("multitag_room", 1);
-  ASSERT_EQ(ds.manifest.tags.count(3), 1u);
+  EXPECT_EQ(ds.manifest.tags.count(3), 1u);
   ds.manifest.tags.erase(3);
   ds.events.erase(std::remove_if(ds.events.begin(), ds.events.end(),
                                  [](const loc::Event& e) {
@@ -190,7 +191,16 @@ TEST(UwbEkfMultitag, TwoTagsGiveTheHeadingWithinOneSecondWithoutMotion) {
                                    return r && r->tag_id == 3;
                                  }),
                   ds.events.end());
-  ASSERT_EQ(ds.manifest.tags.size(), 2u);
+  EXPECT_EQ(ds.manifest.tags.size(), 2u);
+  return ds;
+}
+
+// uwb-ekf on a robot with two tags (multitag_room without its third), started from the first
+// epoch with no start pose: the heading is within a few degrees a second after its first
+// estimate while the robot still stands, and the position beats the same filter on one tag;
+// uwb-ekf on the primary tag alone has no heading until the robot moves.
+TEST(UwbEkfMultitag, TwoTagsGiveTheHeadingWithinOneSecondWithoutMotion) {
+  const data::Dataset ds = twoTagRoom();
   const auto h = headingWhileStanding(ds, "uwb-ekf:start=fix");
   const auto two = eval::evaluateMethod(ds, "uwb-ekf:start=fix", 1, 1);
   const auto one = eval::evaluateMethod(ds, "uwb-ekf:start=fix,tags=primary", 1, 1);
@@ -232,6 +242,88 @@ TEST(UwbEkfMultitag, TwoTagsGiveTheHeadingWithinOneSecondWithoutMotion) {
   for (const auto& e : primary.trajectory) {
     if (e.t < ds.start_time + 9.5) {
       EXPECT_FALSE(e.heading_valid) << e.t;
+    }
+  }
+}
+
+// Every range filter built on uwb-ekf reads both tags of the two-tag room, started from an epoch
+// with no start pose: each has the heading within a few degrees a second after its first
+// estimate while the robot stands, keeps it while it moves, and places the robot better than
+// the same filter on its primary tag, which has no heading until the robot moves. The worst
+// standing error is at one noisy stretch (6.7 s after the first estimate) for every filter:
+// 9.7-10.7 deg for those with a fixed R, 13.6-16.3 deg for the adaptive ones, whose R follows
+// the innovations down (uwb-shkf, uwb-iahckf, uwb-akf); each gets its own bound on it.
+TEST(UwbEkfMultitag, EveryRangeFilterGetsTheHeadingFromTwoTags) {
+  const data::Dataset ds = twoTagRoom();
+  const std::vector<std::pair<std::string, double>> filters = {
+      {"uwb-ckf", 15.0},      {"uwb-hinf-ckf", 15.0}, {"uwb-iahckf", 20.0},
+      {"uwb-srukf", 15.0},    {"uwb-shkf", 20.0},     {"uwb-akf:mode=ranges", 20.0},
+      {"federated-ekf", 15.0}};
+  for (const auto& [method, worst_deg] : filters) {
+    const std::string spec = method + (method.find(':') == std::string::npos ? ":" : ",");
+    const auto h = headingWhileStanding(ds, spec + "start=fix");
+    const auto two = eval::evaluateMethod(ds, spec + "start=fix", 1, 1);
+    const auto one = eval::evaluateMethod(ds, spec + "start=fix,tags=primary", 1, 1);
+    std::printf(
+        "[ HEADING  ] %s, two tags, standing: mean |heading error| %.2f deg, worst %.2f deg "
+        "(%.2f s after the first estimate) over %ld estimates; whole run rmse_2d %.4f m, yaw "
+        "rmse %.2f deg (primary tag alone: %.4f m)\n",
+        method.c_str(), h.mean_deg, h.worst_deg, h.worst_after, h.n, two.metrics.rmse_2d,
+        two.metrics.rmse_yaw_deg, one.metrics.rmse_2d);
+    EXPECT_GT(h.n, 50) << method;
+    EXPECT_LT(h.mean_deg, 5.0) << method;
+    EXPECT_LT(h.worst_deg, worst_deg) << method;
+    EXPECT_LT(two.metrics.rmse_2d, 0.6 * one.metrics.rmse_2d) << method;
+    EXPECT_LT(two.metrics.rmse_yaw_deg, 8.0) << method;
+    const auto primary = eval::runMethod(ds, spec + "start=fix,tags=primary", 1);
+    for (const auto& e : primary.trajectory) {
+      if (e.t < ds.start_time + 9.5) {
+        EXPECT_FALSE(e.heading_valid) << method << " " << e.t;
+      }
+    }
+  }
+}
+
+// The point filters after the heading has gone unobserved: tag 2's ranges are dropped for 30 s
+// while the robot drives and turns, so only tag 0's remain and the heading's std grows past
+// what 2n points can span (sqrt(6) sigma beyond +-pi: they wrap round the circle and say
+// nothing of the heading). Held at 60 deg (boundHeadingSpread), the heading is learnt again
+// within seconds of tag 2's return; unbounded, uwb-ckf never learnt it again on the MRPT demo
+// with simulated tags (2.93 m).
+TEST(UwbEkfMultitag, PointFiltersLearnTheHeadingAgainAfterItWentUnobserved) {
+  data::Dataset ds = twoTagRoom();
+  const double from = ds.start_time + 20.0, to = ds.start_time + 50.0;
+  ds.events.erase(std::remove_if(ds.events.begin(), ds.events.end(),
+                                 [&](const loc::Event& e) {
+                                   const auto* r = std::get_if<uwb::Range>(&e);
+                                   return r && r->tag_id == 2 && r->t > from && r->t < to;
+                                 }),
+                  ds.events.end());
+  for (const std::string method : {"uwb-ckf", "uwb-srukf", "uwb-ekf"}) {
+    const auto run = eval::runMethod(ds, method + ":start=fix", 1);
+    ASSERT_FALSE(run.trajectory.empty()) << method;
+    double sum = 0.0;
+    long n = 0, valid = 0;
+    for (const auto& e : run.trajectory) {
+      if (e.t < to + 3.0) continue;
+      const auto truth = eval::interpolateGroundTruth(ds.ground_truth, e.t, 1.0);
+      if (!truth) continue;
+      ++n;
+      if (!e.heading_valid) continue;
+      ++valid;
+      sum += std::abs(wrapAngle(e.pose.z() - truth->z())) * 180.0 / M_PI;
+    }
+    const auto events = run.statistics.events;
+    const long bounded = events.count("heading_std_bounded") ? events.at("heading_std_bounded") : 0;
+    std::printf(
+        "[ HEADING  ] %s, 3 s after tag 2's 30 s outage on: heading valid on %ld of %ld "
+        "estimates, mean |error| %.2f deg; heading std bounded %ld times\n",
+        method.c_str(), valid, n, valid ? sum / static_cast<double>(valid) : -1.0, bounded);
+    ASSERT_GT(n, 100) << method;
+    EXPECT_GT(valid, 0.95 * static_cast<double>(n)) << method;
+    EXPECT_LT(sum / static_cast<double>(std::max(valid, 1L)), 8.0) << method;
+    if (method != "uwb-ekf") {
+      EXPECT_GT(bounded, 0) << method;
     }
   }
 }

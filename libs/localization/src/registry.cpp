@@ -8,7 +8,6 @@
 #include "uwbloc/localization/methods/uwb_akf.hpp"
 #include "uwbloc/localization/methods/uwb_ctrv_ekf.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
-#include "uwbloc/localization/methods/uwb_ekf_multitag.hpp"
 #include "uwbloc/localization/methods/uwb_ins.hpp"
 #include "uwbloc/localization/methods/uwb_kf.hpp"
 #include "uwbloc/localization/methods/uwb_multitag.hpp"
@@ -27,6 +26,23 @@ MethodInfo multilaterationMethod(const std::string& name, const std::string& des
       [solver](const MultilaterationParams& p, const EstimatorContext& ctx) {
         return std::make_unique<MultilaterationEstimator>(solver, p, ctx);
       });
+}
+
+// A range filter (uwb_ekf.hpp): Filter<6> on every tag when the robot carries two or more and the
+// key tags is auto, else Filter<4> on the primary tag.
+EkfTags tagsOf(const UwbEkfParams& p) { return p.tags; }
+EkfTags tagsOf(const UwbCkfParams& p) { return p.ekf.tags; }
+EkfTags tagsOf(const UwbIahCkfParams& p) { return p.ckf.ekf.tags; }
+EkfTags tagsOf(const UwbSrukfParams& p) { return p.ekf.tags; }
+EkfTags tagsOf(const UwbShkfParams& p) { return p.ekf.tags; }
+EkfTags tagsOf(const FederatedEkfParams& p) { return p.ekf.tags; }
+
+template <template <int> class Filter, class Params>
+MethodInfo rangeFilterMethod(const std::string& name, const std::string& description) {
+  return makeMethod<Filter<4>, Params>(name, description, {"ranges"},
+                                       [](const Params& p, const EstimatorContext& ctx) {
+                                         return makeRangeFilter<Filter>(p, tagsOf(p), ctx);
+                                       });
 }
 
 // A registered method whose parameter `key` defaults to `value` (another method's estimator with
@@ -74,36 +90,30 @@ Registry makeBuiltin() {
       "UWB only: the mobile-node paper's EKF, constant turn rate and velocity, on multilateration "
       "fixes (solver=ls: the paper's least squares) behind the increment-queue gate",
       {"ranges"}));
-  r.add(makeMethod<UwbEkf, UwbEkfMethodParams>(
+  r.add(rangeFilterMethod<UwbEkfT, UwbEkfParams>(
       "uwb-ekf",
       "UWB only: constant-velocity EKF on each range, innovation-gated (tight); with two tags or "
-      "more on the robot, on the pose and heading through the lever arms",
-      {"ranges"}, makeUwbEkf));
-  r.add(makeMethod<UwbShkf, UwbShkfParams>(
+      "more on the robot, on the pose and heading through the lever arms"));
+  r.add(rangeFilterMethod<UwbShkfT, UwbShkfParams>(
       "uwb-shkf",
       "UWB only: improved Sage-Husa KF on each range: fading factor, variable window, adaptive "
-      "factor; takes a per-range NLOS probability",
-      {"ranges"}));
-  r.add(makeMethod<UwbCkf, UwbCkfParams>(
-      "uwb-ckf", "UWB only: cubature KF (third-degree spherical-radial rule) on each range",
-      {"ranges"}));
-  r.add(withDefault(makeMethod<UwbCkf, UwbCkfParams>(
+      "factor; takes a per-range NLOS probability"));
+  r.add(rangeFilterMethod<UwbCkfT, UwbCkfParams>(
+      "uwb-ckf", "UWB only: cubature KF (third-degree spherical-radial rule) on each range"));
+  r.add(withDefault(rangeFilterMethod<UwbCkfT, UwbCkfParams>(
                         "uwb-hinf-ckf",
                         "UWB only: H-infinity cubature KF on each range (hinf: the bound over "
-                        "the smallest feasible)",
-                        {"ranges"}),
+                        "the smallest feasible)"),
                     "hinf", "5"));
-  r.add(makeMethod<UwbIahCkf, UwbIahCkfParams>(
+  r.add(rangeFilterMethod<UwbIahCkfT, UwbIahCkfParams>(
       "uwb-iahckf",
       "UWB only: the H-infinity cubature paper's improved adaptive filter: H-inf CKF, Sage-Husa "
-      "noise per anchor, IGG-III robust factor above the 0.24 m NLOS threshold",
-      {"ranges"}));
-  r.add(makeMethod<UwbSrukf, UwbSrukfParams>(
-      "uwb-srukf", "UWB only: square-root unscented KF on each range", {"ranges"}));
-  r.add(makeMethod<FederatedEkf, FederatedEkfParams>(
+      "noise per anchor, IGG-III robust factor above the 0.24 m NLOS threshold"));
+  r.add(rangeFilterMethod<UwbSrukfT, UwbSrukfParams>(
+      "uwb-srukf", "UWB only: square-root unscented KF on each range"));
+  r.add(rangeFilterMethod<FederatedEkfT, FederatedEkfParams>(
       "federated-ekf",
-      "UWB only: federated EKF, local EKFs on anchor groups fused by information (fusion-reset)",
-      {"ranges"}));
+      "UWB only: federated EKF, local EKFs on anchor groups fused by information (fusion-reset)"));
   r.add(makeMethod<UwbIns, UwbInsParams>(
       "uwb-ins",
       "UWB/INS: EKF over the planar strapdown (position, velocity, heading, biases), updated "

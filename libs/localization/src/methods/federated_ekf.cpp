@@ -4,8 +4,9 @@
 
 namespace uwbloc::loc {
 
-FederatedEkf::FederatedEkf(const FederatedEkfParams& params, const EstimatorContext& context)
-    : UwbEkf(params.ekf, context) {
+template <int N>
+FederatedEkfT<N>::FederatedEkfT(const FederatedEkfParams& params, const EstimatorContext& context)
+    : UwbEkfT<N>(params.ekf, context) {
   std::vector<int> ids;
   for (const auto& a : context.anchors) ids.push_back(a.id);
   std::sort(ids.begin(), ids.end());
@@ -14,18 +15,25 @@ FederatedEkf::FederatedEkf(const FederatedEkfParams& params, const EstimatorCont
   locals_.resize(groups);
 }
 
-void FederatedEkf::resetLocals() {
+template <int N>
+void FederatedEkfT<N>::resetLocals() {
   const double n = static_cast<double>(locals_.size());  // 1 / β_i
   for (auto& l : locals_) l = {x_, n * p_, t_, false};
 }
 
-void FederatedEkf::onStart() { resetLocals(); }
+template <int N>
+void FederatedEkfT<N>::onStart() {
+  resetLocals();
+}
 
-void FederatedEkf::fuse() {
-  Eigen::Matrix4d info = Eigen::Matrix4d::Zero();
-  Eigen::Vector4d info_x = Eigen::Vector4d::Zero();
+template <int N>
+void FederatedEkfT<N>::fuse() {
+  Covariance info = Covariance::Zero();
+  State info_x = State::Zero();
   for (const auto& l : locals_) {
-    const Eigen::Matrix4d li = l.p.inverse();
+    // (N = 6: the local headings are never wrapped, only the master's, so they stay on one
+    // branch of the angle and their mean is the right one.)
+    const Covariance li = l.p.inverse();
     info += li;
     info_x += li * l.x;
   }
@@ -34,29 +42,32 @@ void FederatedEkf::fuse() {
   x_ = p_ * info_x;
 }
 
-bool FederatedEkf::updateWithRange(const AcceptedRange& r) {
+template <int N>
+bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
   const auto g = group_of_.find(r.measurement.anchor_id);
   if (g == group_of_.end()) return false;  // the front end accepts known anchors only
   const double n = static_cast<double>(locals_.size());
   const double t = std::max(t_, r.measurement.t);
   // Every local filter to the range's time, with the shared process noise Q / β_i.
   for (auto& l : locals_) {
-    if (t > l.t)
-      kalman::predictConstantVelocity(l.x, l.p, t - l.t, n * params_.accel_psd,
-                                      params_.velocity_tau);
+    if (t > l.t) {
+      Covariance f, q;
+      this->transition(t - l.t, f, q, n);
+      l.x = f * l.x;
+      l.p = f * l.p * f.transpose() + q;
+    }
     l.t = t;
   }
   t_ = t;
   Local& local = locals_[g->second];
-  Eigen::Matrix<double, 1, 4> hj;
-  const double h = rangeModel(local.x, r, &hj);
-  const Eigen::Matrix<double, 1, 1> rv(rangeVariance(r));
-  const auto inn = kalman::innovate<4, 1>(
-      local.p, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);
-  const bool used = admit(r.measurement.anchor_id, inn.y(0),
-                          kalman::inGate(inn, uwb::ChiSquareGate(params_.gate)));
+  typename Base::Jacobian hj;
+  const double h = Base::rangeModel(local.x, r, &hj);
+  const Eigen::Matrix<double, 1, 1> rv(this->rangeVariance(r));
+  const auto inn =
+      kalman::innovate<N, 1>(local.p, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);
+  const bool used = this->admit(r, inn.y(0), kalman::inGate(inn, uwb::ChiSquareGate(params_.gate)));
   if (used) {
-    kalman::josephUpdate<4, 1>(local.x, local.p, inn, hj, rv);
+    kalman::josephUpdate<N, 1>(local.x, local.p, inn, hj, rv);
     local.measured = true;
   }
   fuse();
@@ -64,5 +75,8 @@ bool FederatedEkf::updateWithRange(const AcceptedRange& r) {
     resetLocals();
   return used;
 }
+
+template class FederatedEkfT<4>;
+template class FederatedEkfT<6>;
 
 }  // namespace uwbloc::loc

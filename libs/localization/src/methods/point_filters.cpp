@@ -20,32 +20,37 @@ void checkHinfRatio(double hinf) {
                      "which the H-infinity bound exists");
 }
 
-UwbCkf::UwbCkf(const UwbCkfParams& params, const EstimatorContext& context)
-    : UwbEkf(params.ekf, context), hinf_(params.hinf) {
+template <int N>
+UwbCkfT<N>::UwbCkfT(const UwbCkfParams& params, const EstimatorContext& context)
+    : UwbEkfT<N>(params.ekf, context), hinf_(params.hinf) {
   checkHinfRatio(hinf_);
 }
 
-UwbEkf::RangePrediction UwbCkf::predictRange(const AcceptedRange& r) {
-  const auto points = kalman::cubaturePoints<4>(x_, p_);
-  moments_ = kalman::propagate<4, 1>(points, x_, [&](const Eigen::Vector4d& x) {
-    return Range1(rangeModel(x, r));
-  });
-  return {moments_.z(0), moments_.pzz(0, 0) + rangeVariance(r)};
+template <int N>
+typename UwbCkfT<N>::RangePrediction UwbCkfT<N>::predictRange(const AcceptedRange& r) {
+  this->boundHeadingSpread(p_);
+  const auto points = kalman::cubaturePoints<N>(x_, p_);
+  moments_ = kalman::propagate<N, 1>(
+      points, x_, [&](const kalman::Vec<N>& x) { return Range1(Base::rangeModel(x, r)); });
+  return {moments_.z(0), moments_.pzz(0, 0) + this->rangeVariance(r)};
 }
 
-void UwbCkf::cubatureCorrect(double y, double r_var) {
+template <int N>
+void UwbCkfT<N>::cubatureCorrect(double y, double r_var) {
   if (hinf_ > 0.0) {
-    const Eigen::Matrix4d position = Eigen::Vector4d(1, 1, 0, 0).asDiagonal();
-    const double gamma = kalman::hinfCubatureUpdate<4, 1>(x_, p_, moments_, Range1(y),
+    kalman::Mat<N, N> position = kalman::Mat<N, N>::Zero();  // the bound is on (x, y)
+    position(0, 0) = position(1, 1) = 1.0;
+    const double gamma = kalman::hinfCubatureUpdate<N, 1>(x_, p_, moments_, Range1(y),
                                                           Range1(r_var), hinf_, position);
     if (gamma == 0.0) ++stats_.events["hinf_bound_infeasible"];
   } else {
-    kalman::cubatureUpdate<4, 1>(x_, p_, moments_, Range1(y), Range1(r_var));
+    kalman::cubatureUpdate<N, 1>(x_, p_, moments_, Range1(y), Range1(r_var));
   }
 }
 
-void UwbCkf::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
-  cubatureCorrect(y, rangeVariance(r));
+template <int N>
+void UwbCkfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
+  cubatureCorrect(y, this->rangeVariance(r));
 }
 
 double iggIIIFactor(double v, double k0, double k1) {
@@ -55,35 +60,39 @@ double iggIIIFactor(double v, double k0, double k1) {
   return v / k0 * shape * shape;
 }
 
-UwbIahCkf::UwbIahCkf(const UwbIahCkfParams& params, const EstimatorContext& context)
-    : UwbCkf(params.ckf, context), iah_(params) {
+template <int N>
+UwbIahCkfT<N>::UwbIahCkfT(const UwbIahCkfParams& params, const EstimatorContext& context)
+    : UwbCkfT<N>(params.ckf, context), iah_(params) {
   if (!(params.k1 > params.k0))
     throw ParamError("parameter 'k1' must exceed 'k0' (IGG-III: k0 < k1)");
 }
 
-bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
-  if (r.measurement.t > t_) {
-    predictTo(r.measurement.t);
-    t_ = r.measurement.t;
+template <int N>
+bool UwbIahCkfT<N>::updateWithRange(const AcceptedRange& r) {
+  if (r.measurement.t > this->t_) {
+    this->predictTo(r.measurement.t);
+    this->t_ = r.measurement.t;
   }
-  const int id = r.measurement.anchor_id;
-  auto [it, fresh] = anchors_.try_emplace(id);
+  // The statistics are the link's: the anchor's with one tag, the anchor-tag pair's with several
+  // (each pair has its own antenna delay and blockage).
+  const auto link = this->link(r);
+  auto [it, fresh] = links_.try_emplace(link);
   auto& stat = it->second;
   if (fresh) {
-    stat.R(0, 0) = rangeVariance();
+    stat.R(0, 0) = this->rangeVariance();
     stat.k = iah_.priorSteps();
   }
-  const RangePrediction pred = predictRange(r);
+  const auto pred = this->predictRange(r);
   const double innovation = r.measurement.range - pred.z;
-  const double e = innovation - stat.r(0);  // less the anchor's estimated bias
-  const double pzz = moments_.pzz(0, 0);
+  const double e = innovation - stat.r(0);  // less the link's estimated bias
+  const double pzz = this->moments_.pzz(0, 0);
   const double v = std::abs(e) / std::sqrt(pzz + stat.R(0, 0));
   // The NLOS threshold under the robust factor: small innovations always keep R.
   const bool suspect = std::abs(e) > iah_.nlos_threshold;
   const double factor = suspect ? iggIIIFactor(v, iah_.k0, iah_.k1) : 1.0;
-  if (!admit(id, e, std::isfinite(factor))) return false;
+  if (!this->admit(r, e, std::isfinite(factor))) return false;
   if (factor > 1.0) ++stats_.events["robust_factor_inflated"];
-  cubatureCorrect(e, factor * stat.R(0, 0) * r.variance_scale);
+  this->cubatureCorrect(e, factor * stat.R(0, 0) * r.variance_scale);
   if (factor == 1.0) {
     // The Sage-Husa statistics (eq. 16, 24), with the points' P_zz for H P H^T.
     const double d = kalman::sageHusaWeight(iah_.forgetting, stat.k);
@@ -95,43 +104,61 @@ bool UwbIahCkf::updateWithRange(const AcceptedRange& r) {
       ++stats_.events["r_kept_positive"];
     }
     ++stat.k;
-    stats_.estimated_noise[id] = {stat.r(0), std::sqrt(stat.R(0, 0)), stat.k - iah_.priorSteps()};
+    if (this->reportsNoise(link))
+      stats_.estimated_noise[link.first] = {stat.r(0), std::sqrt(stat.R(0, 0)),
+                                            stat.k - iah_.priorSteps()};
   }
   return true;
 }
 
-UwbSrukf::UwbSrukf(const UwbSrukfParams& params, const EstimatorContext& context)
-    : UwbEkf(params.ekf, context), sr_(params) {
-  if (!(params.alpha * params.alpha * (4.0 + params.kappa) > 0.0))
-    throw ParamError("parameters 'ut_alpha', 'ut_kappa': n + lambda = alpha^2 (n + kappa) must "
-                     "be positive (n = 4)");
+template <int N>
+UwbSrukfT<N>::UwbSrukfT(const UwbSrukfParams& params, const EstimatorContext& context)
+    : UwbEkfT<N>(params.ekf, context), sr_(params) {
+  if (!(params.alpha * params.alpha * (N + params.kappa) > 0.0))
+    throw ParamError(
+        "parameters 'ut_alpha', 'ut_kappa': n + lambda = alpha^2 (n + kappa) must "
+        "be positive (n = " +
+        std::to_string(N) + ")");
 }
 
-void UwbSrukf::onStart() { s_ = kalman::lowerSquareRoot<4>(p_); }
+template <int N>
+void UwbSrukfT<N>::onStart() {
+  s_ = kalman::lowerSquareRoot<N>(p_);
+}
 
-void UwbSrukf::predictTo(double t) {
-  Eigen::Matrix4d f, q;
-  constantVelocityModel(t - t_, params_.accel_psd, f, q, params_.velocity_tau);
-  const bool ok = kalman::sqrtUnscentedPredict<4>(
-      x_, s_, [&](const Eigen::Vector4d& x) { return Eigen::Vector4d(f * x); },
-      kalman::lowerSquareRoot<4>(q), sr_.alpha, sr_.beta, sr_.kappa);
+template <int N>
+void UwbSrukfT<N>::predictTo(double t) {
+  Covariance f, q;
+  this->transition(t - this->t_, f, q);
+  const bool ok = kalman::sqrtUnscentedPredict<N>(
+      x_, s_, [&](const State& x) { return State(f * x); }, kalman::lowerSquareRoot<N>(q),
+      sr_.alpha, sr_.beta, sr_.kappa);
   if (!ok) ++stats_.events["sqrt_rebuilt"];
   p_ = s_ * s_.transpose();
 }
 
-UwbEkf::RangePrediction UwbSrukf::predictRange(const AcceptedRange& r) {
-  points_ = kalman::unscentedPoints<4>(x_, s_, sr_.alpha, sr_.beta, sr_.kappa);
-  moments_ = kalman::propagate<4, 1>(points_, x_, [&](const Eigen::Vector4d& x) {
-    return Range1(rangeModel(x, r));
-  });
-  return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + rangeVariance(r)};
+template <int N>
+typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const AcceptedRange& r) {
+  if (this->boundHeadingSpread(p_)) s_ = kalman::lowerSquareRoot<N>(p_);
+  points_ = kalman::unscentedPoints<N>(x_, s_, sr_.alpha, sr_.beta, sr_.kappa);
+  moments_ = kalman::propagate<N, 1>(
+      points_, x_, [&](const State& x) { return Range1(Base::rangeModel(x, r)); });
+  return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + this->rangeVariance(r)};
 }
 
-void UwbSrukf::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
-  const bool ok = kalman::sqrtUnscentedUpdate<4, 1>(x_, s_, points_, moments_, Range1(y),
-                                                    Range1(std::sqrt(rangeVariance(r))));
+template <int N>
+void UwbSrukfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
+  const bool ok = kalman::sqrtUnscentedUpdate<N, 1>(x_, s_, points_, moments_, Range1(y),
+                                                    Range1(std::sqrt(this->rangeVariance(r))));
   if (!ok) ++stats_.events["sqrt_rebuilt"];
   p_ = s_ * s_.transpose();
 }
+
+template class UwbCkfT<4>;
+template class UwbCkfT<6>;
+template class UwbIahCkfT<4>;
+template class UwbIahCkfT<6>;
+template class UwbSrukfT<4>;
+template class UwbSrukfT<6>;
 
 }  // namespace uwbloc::loc

@@ -61,29 +61,36 @@ UwbEkfParams ekfParams(const UwbAkfParams& p) {
   e.learning = p.kf.fix.learning;
   e.velocity_tau = p.kf.velocity_tau;
   e.init_residual = p.kf.fix.init_residual;
+  e.tags = p.tags;
+  e.start = p.start;
   return e;
 }
 
 }  // namespace
 
-UwbAkfRanges::UwbAkfRanges(const UwbAkfParams& params, const EstimatorContext& context)
-    : UwbEkf(ekfParams(params), context), akf_(params) {}
+template <int N>
+UwbAkfRanges<N>::UwbAkfRanges(const UwbAkfParams& params, const EstimatorContext& context)
+    : UwbEkfT<N>(ekfParams(params), context), akf_(params) {}
 
-void UwbAkfRanges::onStart() { anchors_.clear(); }
+template <int N>
+void UwbAkfRanges<N>::onStart() {
+  links_.clear();
+}
 
-bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
+template <int N>
+bool UwbAkfRanges<N>::updateWithRange(const AcceptedRange& r) {
   // The process statistics are the constant-velocity model's over this interval: adapted range
   // by range (q̂ the mean correction, Q̂ from K e e^T K^T + P - F P F^T), they drifted on the
   // demo, where each range corrects one direction only (uwb-akf 8.1 m, uwb-iakf 1036 m).
-  Eigen::Matrix4d f;
-  kalman::SageHusaProcess<4> process;  // q̂ = 0, Q̂ the model's
-  constantVelocityModel(std::max(0.0, dt(r.measurement.t)), params_.accel_psd, f, process.Q,
-                        params_.velocity_tau);
-  const auto pred = kalman::sageHusaPredict<4>(x_, p_, process, f);
+  typename Base::Covariance f;
+  kalman::SageHusaProcess<N> process;  // q̂ = 0, Q̂ the model's
+  this->transition(std::max(0.0, this->dt(r.measurement.t)), f, process.Q);
+  const auto pred = kalman::sageHusaPredict<N>(x_, p_, process, f);
   t_ = std::max(t_, r.measurement.t);
-  Eigen::Matrix<double, 1, 4> hj;
-  const double predicted = rangeModel(x_, r, &hj);
-  auto [it, fresh] = anchors_.try_emplace(r.measurement.anchor_id);
+  typename Base::Jacobian hj;
+  const double predicted = Base::rangeModel(x_, r, &hj);
+  const auto link = this->link(r);
+  auto [it, fresh] = links_.try_emplace(link);
   auto& anchor = it->second;
   if (fresh) {
     anchor.R(0, 0) = params_.front.sigmaValue() * params_.front.sigmaValue();
@@ -92,29 +99,35 @@ bool UwbAkfRanges::updateWithRange(const AcceptedRange& r) {
     anchor.from_residual = akf_.rFromResidual();
   }
   const double innovation = r.measurement.range - predicted;
-  // uwb-ekf's gate and quarantine (UwbEkf::admit) on the innovation less the anchor's bias: a
+  // uwb-ekf's gate and quarantine (UwbEkfT::admit) on the innovation less the anchor's bias: a
   // refused range leaves the statistics alone (an NLOS burst would otherwise become the anchor's
   // noise). The gate's R is the adaptive R̂ but never below the method's sigma^2: R̂ may fall
   // under the noise the gate allows for, and a gate tighter than uwb-ekf's drops good ranges
   // and, through the quarantine, the ranges after them (Hanyang NLOS A1: 1.027 m, against
   // 0.705 m with this floor).
   const double e = innovation - anchor.r(0);
-  const double s = (hj * p_ * hj.transpose())(0, 0) + std::max(anchor.R(0, 0), rangeVariance(r));
+  const double s =
+      (hj * p_ * hj.transpose())(0, 0) + std::max(anchor.R(0, 0), this->rangeVariance(r));
   const bool in_gate = uwb::ChiSquareGate(params_.gate).acceptSquared(e * e / s);
-  if (!admit(r.measurement.anchor_id, e, in_gate)) return false;
-  const auto out = kalman::sageHusaUpdate<4, 1>(x_, p_, pred, nullptr, anchor,
+  if (!this->admit(r, e, in_gate)) return false;
+  const auto out = kalman::sageHusaUpdate<N, 1>(x_, p_, pred, nullptr, anchor,
                                                 Eigen::Matrix<double, 1, 1>(innovation), hj,
                                                 akf_.forgetting, akf_.gamma, akf_.r_floor);
   if (out.diverged) ++stats_.events["divergence_inflated"];
   if (out.r_projected) ++stats_.events["r_kept_positive"];
   // The anchor's range model as the filter now sees it: r̂ its bias, sqrt(R̂) its std.
-  stats_.estimated_noise[r.measurement.anchor_id] = {anchor.r(0), std::sqrt(anchor.R(0, 0)),
-                                                     anchor.k - akf_.priorSteps()};
+  if (this->reportsNoise(link))
+    stats_.estimated_noise[link.first] = {anchor.r(0), std::sqrt(anchor.R(0, 0)),
+                                          anchor.k - akf_.priorSteps()};
   return true;
 }
 
+template class UwbAkfRanges<4>;
+template class UwbAkfRanges<6>;
+
 std::unique_ptr<Estimator> makeUwbAkf(const UwbAkfParams& params, const EstimatorContext& context) {
-  if (params.mode == AkfMode::kRanges) return std::make_unique<UwbAkfRanges>(params, context);
+  if (params.mode == AkfMode::kRanges)
+    return makeRangeFilter<UwbAkfRanges>(params, params.tags, context);
   return std::make_unique<UwbAkf>(params, context);
 }
 

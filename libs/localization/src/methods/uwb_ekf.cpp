@@ -4,14 +4,23 @@
 #include <algorithm>
 #include <cmath>
 
+#include "uwbloc/localization/methods/uwb_multitag.hpp"
 #include "uwbloc/localization/registry.hpp"
+#include "uwbloc/uwb/pose2.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
 namespace uwbloc::loc {
 
-UwbEkf::UwbEkf(const UwbEkfParams& params, const EstimatorContext& context)
-    : UwbEstimator(params.front, context),
+namespace {
+// N = 6: the (x, y, theta) block of the state.
+constexpr int kPoseIndex[3] = {0, 1, UwbEkfT<6>::kTheta};
+}  // namespace
+
+template <int N>
+UwbEkfT<N>::UwbEkfT(const UwbEkfParams& params, const EstimatorContext& context)
+    : UwbEstimator(params.front, context, kMultitag ? TagUse::kAll : TagUse::kPrimary),
       params_(params),
+      primary_tag_(primaryTag(context)),
       init_epochs_(params.epoch_window),
       noise_(params.front.sigmaValue()) {
   if (context.initial_pose) heading_.setHeading(context.initial_pose->z());
@@ -32,41 +41,99 @@ void learnRangeFilterNoise(const EstimatorStatistics& learnt, UwbEkfParams& para
   countLearnt(learnt, stats);
 }
 
-void UwbEkf::learn(const EstimatorStatistics& learnt) {
+template <int N>
+void UwbEkfT<N>::learn(const EstimatorStatistics& learnt) {
   learnRangeFilterNoise(learnt, params_, noise_, stats_);
 }
 
-void UwbEkf::reset() {
+template <int N>
+void UwbEkfT<N>::reset() {
   initialised_ = false;
   quarantine_.clear();
   gated_in_a_row_ = 0;
   init_epochs_ = EpochBuffer(params_.epoch_window);
 }
 
-void UwbEkf::predictTo(double t) {
-  kalman::predictConstantVelocity(x_, p_, t - t_, params_.accel_psd, params_.velocity_tau);
+template <int N>
+void UwbEkfT<N>::transition(double dt, Covariance& f, Covariance& q, double scale) const {
+  if constexpr (kMultitag) {
+    Eigen::Matrix4d f4, q4;
+    constantVelocityModel(dt, scale * params_.accel_psd, f4, q4, params_.velocity_tau);
+    f.setIdentity();
+    q.setZero();
+    f.template topLeftCorner<4, 4>() = f4;
+    q.template topLeftCorner<4, 4>() = q4;
+    f(kTheta, kOmega) = dt;
+    const double w = scale * params_.yaw_accel_psd;
+    q(kTheta, kTheta) = w * dt * dt * dt / 3.0;
+    q(kTheta, kOmega) = q(kOmega, kTheta) = w * dt * dt / 2.0;
+    q(kOmega, kOmega) = w * dt;
+  } else {
+    constantVelocityModel(dt, scale * params_.accel_psd, f, q, params_.velocity_tau);
+  }
 }
 
-double UwbEkf::rangeModel(const Eigen::Vector4d& x, const AcceptedRange& r,
-                          Eigen::Matrix<double, 1, 4>* hj) {
-  const Eigen::Vector3d tag(x(0), x(1), r.measurement.tag_on_robot.z());
-  const double h = std::max((tag - r.anchor).norm(), 1e-6);
-  if (hj) *hj << (x(0) - r.anchor.x()) / h, (x(1) - r.anchor.y()) / h, 0.0, 0.0;
-  return h;
+template <int N>
+bool UwbEkfT<N>::boundHeadingSpread(Covariance& p) {
+  if constexpr (kMultitag) {
+    if (!(p(kTheta, kTheta) > kMaxPointHeadingStd * kMaxPointHeadingStd)) return false;
+    const double c = kMaxPointHeadingStd / std::sqrt(p(kTheta, kTheta));
+    p.row(kTheta) *= c;
+    p.col(kTheta) *= c;
+    ++stats_.events["heading_std_bounded"];
+    return true;
+  } else {
+    return false;
+  }
 }
 
-UwbEkf::RangePrediction UwbEkf::predictRange(const AcceptedRange& r) {
+template <int N>
+void UwbEkfT<N>::predictTo(double t) {
+  if constexpr (kMultitag) {
+    Covariance f, q;
+    transition(t - t_, f, q);
+    x_ = f * x_;
+    x_(kTheta) = wrapAngle(x_(kTheta));
+    p_ = f * p_ * f.transpose() + q;
+  } else {
+    kalman::predictConstantVelocity(x_, p_, t - t_, params_.accel_psd, params_.velocity_tau);
+  }
+}
+
+template <int N>
+double UwbEkfT<N>::rangeModel(const State& x, const Eigen::Vector3d& tag_on_robot,
+                              const Eigen::Vector3d& anchor, Jacobian* hj) {
+  if constexpr (kMultitag) {
+    Eigen::RowVector3d d_pose;
+    const double h = uwb::predictRange(Eigen::Vector3d(x(0), x(1), x(kTheta)), tag_on_robot, anchor,
+                                       hj ? &d_pose : nullptr);
+    if (hj) {
+      hj->setZero();
+      for (int i = 0; i < 3; ++i) (*hj)(kPoseIndex[i]) = d_pose(i);
+    }
+    return h;
+  } else {
+    const Eigen::Vector3d tag(x(0), x(1), tag_on_robot.z());
+    const double h = std::max((tag - anchor).norm(), 1e-6);
+    if (hj) *hj << (x(0) - anchor.x()) / h, (x(1) - anchor.y()) / h, 0.0, 0.0;
+    return h;
+  }
+}
+
+template <int N>
+typename UwbEkfT<N>::RangePrediction UwbEkfT<N>::predictRange(const AcceptedRange& r) {
   RangePrediction pred;
   pred.z = rangeModel(x_, r, &hj_);
   pred.s = (hj_ * p_ * hj_.transpose())(0, 0) + rangeVariance(r);
   return pred;
 }
 
-void UwbEkf::correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) {
+template <int N>
+void UwbEkfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) {
   kalman::Innovation<1> inn;
   inn.y(0) = y;
   inn.s(0, 0) = pred.s;
-  kalman::josephUpdate<4, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance(r)));
+  kalman::josephUpdate<N, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance(r)));
 }
 
 double predictedPositionStd(const Eigen::Matrix4d& p, double dt, const UwbEkfParams& params) {
@@ -82,28 +149,68 @@ double readmitTolerance(const UwbEkfParams& params) {
   return std::max(params.readmit_tol, 3.0 * params.front.sigmaValue());
 }
 
-PoseEstimate UwbEkf::output(const Eigen::Vector3d& tag_on_robot) const {
-  return kalman::tagTrackPose(t_, x_.head<2>(), p_.topLeftCorner<2, 2>(), tag_on_robot,
-                              heading_.heading());
+template <int N>
+PoseEstimate UwbEkfT<N>::output(const Eigen::Vector3d& tag_on_robot) const {
+  if constexpr (kMultitag) {
+    PoseEstimate e;
+    e.t = t_;
+    e.pose = Eigen::Vector3d(x_(0), x_(1), x_(kTheta));
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) e.covariance(i, j) = p_(kPoseIndex[i], kPoseIndex[j]);
+    e.heading_valid = p_(kTheta, kTheta) < kObservedHeadingStd * kObservedHeadingStd;
+    return e;
+  } else {
+    return kalman::tagTrackPose(t_, x_.template head<2>(), p_.template topLeftCorner<2, 2>(),
+                                tag_on_robot, heading_.heading());
+  }
 }
 
-// The first start at the start pose (at rest, position std start_sigma), when there is one;
-// otherwise, and after divergence, at the first epoch that multilaterates (Gauss-Newton).
-bool UwbEkf::initialise(const AcceptedRange& r) {
+// The first start at the start pose (at rest, position std start_sigma; with several tags,
+// heading std start_sigma_yaw), when there is one; otherwise, and after divergence, at the first
+// epoch that multilaterates (Gauss-Newton; with several tags, uwb-multitag's on the pose) within
+// init_residual.
+template <int N>
+bool UwbEkfT<N>::initialise(const AcceptedRange& r) {
+  const double sp2 = params_.start_sigma * params_.start_sigma;
   if (start_pose_) {
-    x_ << start_pose_->x(), start_pose_->y(), 0.0, 0.0;
-    p_ = Eigen::Vector4d(params_.start_sigma * params_.start_sigma,
-                         params_.start_sigma * params_.start_sigma, 1.0, 1.0)
-             .asDiagonal();
+    if constexpr (kMultitag) {
+      x_.setZero();
+      p_ = Covariance::Identity();  // 1 m/s, 1 rad/s
+      x_(0) = start_pose_->x();
+      x_(1) = start_pose_->y();
+      x_(kTheta) = start_pose_->z();
+      const double sy = params_.start_sigma_yaw * M_PI / 180.0;
+      p_(0, 0) = p_(1, 1) = sp2;
+      p_(kTheta, kTheta) = sy * sy;
+    } else {
+      x_ << start_pose_->x(), start_pose_->y(), 0.0, 0.0;
+      p_ = Eigen::Vector4d(sp2, sp2, 1.0, 1.0).asDiagonal();
+    }
     start_pose_.reset();
     t_ = r.measurement.t;
   } else {
     auto epoch = init_epochs_.add(r);
     if (!epoch) return false;
-    const auto fix =
-        consistentFix(*epoch, params_.front.sigmaValue(), params_.init_residual, stats_);
-    if (!fix) return false;
-    kalman::initialiseFromFix(*fix, x_, p_);
+    if constexpr (kMultitag) {
+      const UwbMultitagParams gn;  // uwb-multitag's Huber threshold and iterations
+      const auto fix = solveMultitag(*epoch, params_.front.sigmaValue(), gn.huber,
+                                     gn.max_iterations, std::nullopt);
+      if (!fix || fix->rms_residual > params_.init_residual) {
+        ++stats_.events["init_fix_refused"];
+        return false;
+      }
+      x_.setZero();
+      p_ = Covariance::Identity();
+      for (int i = 0; i < 3; ++i) {
+        x_(kPoseIndex[i]) = fix->pose(i);
+        for (int j = 0; j < 3; ++j) p_(kPoseIndex[i], kPoseIndex[j]) = fix->covariance(i, j);
+      }
+    } else {
+      const auto fix =
+          consistentFix(*epoch, params_.front.sigmaValue(), params_.init_residual, stats_);
+      if (!fix) return false;
+      kalman::initialiseFromFix(*fix, x_, p_);
+    }
     t_ = epochTime(*epoch);
   }
   quarantine_.clear();
@@ -113,20 +220,29 @@ bool UwbEkf::initialise(const AcceptedRange& r) {
   return true;
 }
 
-std::optional<PoseEstimate> UwbEkf::doProcess(const Event& event) {
+template <int N>
+std::optional<PoseEstimate> UwbEkfT<N>::doProcess(const Event& event) {
   return start_.process(event, learnt_, step_);
 }
 
-std::vector<PoseEstimate> UwbEkf::doFinishAll() { return start_.finish(learnt_, step_); }
+template <int N>
+std::vector<PoseEstimate> UwbEkfT<N>::doFinishAll() {
+  return start_.finish(learnt_, step_);
+}
 
-std::optional<PoseEstimate> UwbEkf::doFinish() { return newestOfFinishAll(); }
+template <int N>
+std::optional<PoseEstimate> UwbEkfT<N>::doFinish() {
+  return newestOfFinishAll();
+}
 
-std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
+template <int N>
+std::optional<PoseEstimate> UwbEkfT<N>::step(const Event& event) {
   auto accepted = acceptRange(event);
   if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
 
   if (initialised_ && params_.reinit_std > 0.0 &&
-      predictedPositionStd(p_, accepted->measurement.t - t_, params_) > params_.reinit_std) {
+      predictedPositionStd(p_.template topLeftCorner<4, 4>(), accepted->measurement.t - t_,
+                           params_) > params_.reinit_std) {
     ++stats_.events["reinitialised_after_outage"];
     reset();
   }
@@ -136,18 +252,21 @@ std::optional<PoseEstimate> UwbEkf::step(const Event& event) {
   }
 
   const bool used = updateWithRange(*accepted);
-  // Every anchor disagreeing with the state for a while means the filter is lost.
+  if constexpr (kMultitag) x_(kTheta) = wrapAngle(x_(kTheta));
+  // Every anchor disagreeing with the state for a while means the filter is lost; so does a
+  // state that rounding has made non-finite.
   gated_in_a_row_ = used ? 0 : gated_in_a_row_ + 1;
-  if (gated_in_a_row_ >= params_.max_gated) {
+  if (gated_in_a_row_ >= params_.max_gated || !x_.allFinite() || !p_.allFinite()) {
     ++stats_.resets;
     reset();
     return std::nullopt;
   }
-  heading_.update(x_.tail<2>());
+  if constexpr (!kMultitag) heading_.update(x_.template tail<2>());
   return output(accepted->measurement.tag_on_robot);
 }
 
-bool UwbEkf::updateWithRange(const AcceptedRange& r) {
+template <int N>
+bool UwbEkfT<N>::updateWithRange(const AcceptedRange& r) {
   if (r.measurement.t > t_) {
     predictTo(r.measurement.t);
     t_ = r.measurement.t;
@@ -155,7 +274,7 @@ bool UwbEkf::updateWithRange(const AcceptedRange& r) {
   const RangePrediction pred = predictRange(r);
   const double y = r.measurement.range - pred.z;
   const bool in_gate = uwb::ChiSquareGate(params_.gate).acceptSquared(y * y / pred.s);
-  if (!admit(r.measurement.anchor_id, y, in_gate)) return false;
+  if (!admit(r, y, in_gate)) return false;
   correctWithRange(r, y, pred);
   return true;
 }
@@ -178,9 +297,13 @@ bool RangeQuarantine::admit(const Link& link, double innovation, bool in_gate, i
   return false;
 }
 
-bool UwbEkf::admit(int id, double innovation, bool in_gate) {
-  return quarantine_.admit({id, 0}, innovation, in_gate, params_.readmit, readmitTolerance(params_),
+template <int N>
+bool UwbEkfT<N>::admit(const AcceptedRange& r, double innovation, bool in_gate) {
+  return quarantine_.admit(link(r), innovation, in_gate, params_.readmit, readmitTolerance(params_),
                            stats_);
 }
+
+template class UwbEkfT<4>;
+template class UwbEkfT<6>;
 
 }  // namespace uwbloc::loc

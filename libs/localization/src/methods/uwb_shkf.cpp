@@ -9,46 +9,49 @@
 
 namespace uwbloc::loc {
 
-UwbShkf::UwbShkf(const UwbShkfParams& params, const EstimatorContext& context)
-    : UwbEkf(params.ekf, context), sh_(params) {
+template <int N>
+UwbShkfT<N>::UwbShkfT(const UwbShkfParams& params, const EstimatorContext& context)
+    : UwbEkfT<N>(params.ekf, context), sh_(params) {
   if (!(params.c1 > params.c0)) throw ParamError("parameter 'c1' must exceed 'c0'");
   if (params.beta.value && (*params.beta.value < 0.0 || *params.beta.value > 1.0))
     throw ParamError("parameter 'beta' must be in [0, 1] or auto");
 }
 
-double UwbShkf::adaptiveFactor(double change, double c0, double c1) {
+template <int N>
+double UwbShkfT<N>::adaptiveFactor(double change, double c0, double c1) {
   if (change <= c0) return 0.0;
   if (change > c1) return 1.0;
   return (change - c0) / (c1 - c0);
 }
 
-bool UwbShkf::updateWithRange(const AcceptedRange& r) {
+template <int N>
+bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
   const int id = r.measurement.anchor_id;
   const double p_nlos = r.measurement.nlos_probability.value_or(0.0);
   if (p_nlos > sh_.p_reject) {
-    countRejection("nlos_probability", id);
+    this->countRejection("nlos_probability", id);
     return false;
   }
-  Eigen::Matrix4d f, q;
-  constantVelocityModel(std::max(0.0, dt(r.measurement.t)), params_.accel_psd, f, q,
-                        params_.velocity_tau);
+  Covariance f, q;
+  this->transition(std::max(0.0, this->dt(r.measurement.t)), f, q);
   t_ = std::max(t_, r.measurement.t);
-  const Eigen::Vector4d x_pred = f * x_;
-  const Eigen::Matrix4d fpf = f * p_ * f.transpose();
-  auto [it, fresh] = anchors_.try_emplace(id);
+  const typename Base::State x_pred = f * x_;
+  const Covariance fpf = f * p_ * f.transpose();
+  const auto link = this->link(r);
+  auto [it, fresh] = links_.try_emplace(link);
   AnchorStatistic& a = it->second;
-  if (fresh) a.r = a.c_exp = rangeVariance();
+  if (fresh) a.r = a.c_exp = this->rangeVariance();
   x_ = x_pred;
   p_ = fpf + q;
-  Eigen::Matrix<double, 1, 4> hj;
-  const double innovation = r.measurement.range - rangeModel(x_, r, &hj);
+  typename Base::Jacobian hj;
+  const double innovation = r.measurement.range - Base::rangeModel(x_, r, &hj);
   const double e = innovation - a.bias;
   const double hpfh = (hj * fpf * hj.transpose())(0, 0);
   const double hqh = (hj * q * hj.transpose())(0, 0);
   // The gate and the quarantine on the unfaded prediction: a refused range leaves the
   // statistics alone (an NLOS burst would otherwise become the anchor's noise).
   const bool in_gate = uwb::ChiSquareGate(params_.gate).acceptSquared(e * e / (hpfh + hqh + a.r));
-  if (!admit(id, e, in_gate)) return false;
+  if (!this->admit(r, e, in_gate)) return false;
 
   // The two innovation statistics and their adaptive mix.
   const double d = kalman::sageHusaWeight(sh_.forgetting, a.k);
@@ -72,8 +75,8 @@ bool UwbShkf::updateWithRange(const AcceptedRange& r) {
   // Until the anchor's statistics hold n0 innovations, R̂ is kept at least the model's: the
   // first innovations are mostly the start's uncertainty, and C - H P H^T from a few of them
   // fell to the floor (greenhouse R1: an overconfident filter that gated 612 ranges, 3.93 m).
-  if (a.k + 1 < static_cast<long>(sh_.n0) && a.r < rangeVariance()) {
-    a.r = rangeVariance();
+  if (a.k + 1 < static_cast<long>(sh_.n0) && a.r < this->rangeVariance()) {
+    a.r = this->rangeVariance();
     ++stats_.events["r_kept_at_model_until_n0"];
   }
   const double floor = sh_.r_floor.value.value_or(0.5 * params_.front.sigmaValue());
@@ -84,12 +87,15 @@ bool UwbShkf::updateWithRange(const AcceptedRange& r) {
   if (sh_.bias) a.bias = (1.0 - d) * a.bias + d * innovation;
   a.last_e = e;
   ++a.k;
-  stats_.estimated_noise[id] = {a.bias, std::sqrt(a.r), a.k};
+  if (this->reportsNoise(link)) stats_.estimated_noise[id] = {a.bias, std::sqrt(a.r), a.k};
   // The update, with the range's NLOS probability widening its noise.
   const Eigen::Matrix<double, 1, 1> rv(a.r / (1.0 - p_nlos));
-  const auto inn = kalman::innovate<4, 1>(p_, Eigen::Matrix<double, 1, 1>(e), hj, rv);
-  kalman::josephUpdate<4, 1>(x_, p_, inn, hj, rv);
+  const auto inn = kalman::innovate<N, 1>(p_, Eigen::Matrix<double, 1, 1>(e), hj, rv);
+  kalman::josephUpdate<N, 1>(x_, p_, inn, hj, rv);
   return true;
 }
+
+template class UwbShkfT<4>;
+template class UwbShkfT<6>;
 
 }  // namespace uwbloc::loc

@@ -1,5 +1,5 @@
-// federated-ekf: the H∞ cubature paper's comparison filter (adaptive-hinf-ckf-uwb-ins.txt, Table 3),
-// Carlson's federated filter ("Federated square root filter for decentralized parallel
+// federated-ekf: the H∞ cubature paper's comparison filter (adaptive-hinf-ckf-uwb-ins.txt, Table
+// 3), Carlson's federated filter ("Federated square root filter for decentralized parallel
 // processes", IEEE TAES 26(3), 1990) in the fusion-reset form. Local EKFs (uwb-ekf's constant-
 // velocity state, range model, gate and quarantine) each take the ranges of one group of anchors
 // (the anchors in id order, dealt round-robin into `groups`); with the information-sharing
@@ -8,7 +8,8 @@
 //   P_g = (Σ P_i^-1)^-1,   x_g = P_g Σ P_i^-1 x_i,
 // and resets them to (x_g, P_g / β_i) once every group has measured since the last reset. The
 // paper's federated filter fuses a UWB and an INS sub-filter; without an IMU the sub-filters are
-// anchor groups, which keeps the decentralised structure (and its information loss).
+// anchor groups, which keeps the decentralised structure (and its information loss). On a robot
+// with two tags or more the local filters hold uwb-ekf's pose state (N = 6, uwb_ekf.hpp).
 #pragma once
 
 #include <vector>
@@ -28,18 +29,26 @@ struct FederatedEkfParams {
   }
 };
 
-class FederatedEkf : public UwbEkf {
+template <int N>
+class FederatedEkfT : public UwbEkfT<N> {
  public:
-  FederatedEkf(const FederatedEkfParams& params, const EstimatorContext& context);
+  FederatedEkfT(const FederatedEkfParams& params, const EstimatorContext& context);
 
  protected:
+  using Base = UwbEkfT<N>;
+  using Base::p_;
+  using Base::params_;
+  using Base::t_;
+  using Base::x_;
+  using typename Base::Covariance;
+  using typename Base::State;
   void onStart() override;
   bool updateWithRange(const AcceptedRange& r) override;
 
  private:
   struct Local {
-    Eigen::Vector4d x;
-    Eigen::Matrix4d p;
+    State x;
+    Covariance p;
     double t = 0.0;
     bool measured = false;
   };
@@ -49,5 +58,9 @@ class FederatedEkf : public UwbEkf {
   std::vector<Local> locals_;
   std::map<int, int> group_of_;  ///< anchor id -> local filter
 };
+
+extern template class FederatedEkfT<4>;
+extern template class FederatedEkfT<6>;
+using FederatedEkf = FederatedEkfT<4>;
 
 }  // namespace uwbloc::loc

@@ -7,7 +7,8 @@
 //     per anchor (r̂ the range bias, R̂ its variance, the greenhouse paper's eq. 16 and 24 with
 //     H P H^T replaced by the points' P_zz) and the IGG-III robust factor on R: for the
 //     normalised innovation v = |e| / sqrt(P_zz + R̂),
-//       v <= k0: R unchanged;  k0 < v <= k1: R × (v / k0) ((k1 - k0) / (k1 - v))^2;  v > k1: dropped
+//       v <= k0: R unchanged;  k0 < v <= k1: R × (v / k0) ((k1 - k0) / (k1 - v))^2;  v > k1:
+//       dropped
 //     (Yang, Song & Xu, "Adaptively robust filtering for kinematic geodetic positioning",
 //     J. Geodesy 75, 2001, the three-segment equivalent weight; the paper's eq. was lost).
 //     The paper's NLOS test, |UWB - INS| > 0.24 m, is the floor under it: a range whose
@@ -17,6 +18,10 @@
 //     an improved variant, ISRUKF, whose changes were lost with its equations).
 // The constant-velocity time update is linear, so the cubature filters propagate it exactly
 // (F P F^T + Q, as the points would); the square-root filter propagates its points and S.
+// Each is uwb-ekf's UwbEkfT<N>: on the primary tag (N = 4) or, with two tags or more, on the
+// robot's pose through every tag's lever arm (N = 6, 2N cubature or 2N + 1 unscented points,
+// the heading's std held at most 60 deg before they are formed: UwbEkfT::boundHeadingSpread);
+// the H∞ bound stays on the position.
 #pragma once
 
 #include <map>
@@ -40,18 +45,24 @@ struct UwbCkfParams {
   }
 };
 
-class UwbCkf : public UwbEkf {
+template <int N>
+class UwbCkfT : public UwbEkfT<N> {
  public:
-  UwbCkf(const UwbCkfParams& params, const EstimatorContext& context);
+  UwbCkfT(const UwbCkfParams& params, const EstimatorContext& context);
 
  protected:
+  using Base = UwbEkfT<N>;
+  using Base::p_;
+  using Base::stats_;
+  using Base::x_;
+  using typename Base::RangePrediction;
   RangePrediction predictRange(const AcceptedRange& r) override;
   void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) override;
   /// The CKF or H∞ update with range noise `r_var`.
   void cubatureCorrect(double y, double r_var);
 
   double hinf_;
-  kalman::PointMoments<4, 1, 8> moments_;  ///< of the last predictRange
+  kalman::PointMoments<N, 1, 2 * N> moments_;  ///< of the last predictRange
 };
 
 struct UwbIahCkfParams {
@@ -83,17 +94,21 @@ struct UwbIahCkfParams {
   }
 };
 
-class UwbIahCkf : public UwbCkf {
+template <int N>
+class UwbIahCkfT : public UwbCkfT<N> {
  public:
-  UwbIahCkf(const UwbIahCkfParams& params, const EstimatorContext& context);
+  UwbIahCkfT(const UwbIahCkfParams& params, const EstimatorContext& context);
 
  protected:
-  void onStart() override { anchors_.clear(); }
+  using Base = UwbCkfT<N>;
+  using Base::params_;
+  using Base::stats_;
+  void onStart() override { links_.clear(); }
   bool updateWithRange(const AcceptedRange& r) override;
 
  private:
   UwbIahCkfParams iah_;
-  std::map<int, kalman::SageHusaMeasurement<1>> anchors_;
+  std::map<RangeQuarantine::Link, kalman::SageHusaMeasurement<1>> links_;
 };
 
 /// Throws ParamError unless `hinf` is 0 (off) or above 1 (a multiple of the smallest feasible γ).
@@ -113,15 +128,24 @@ struct UwbSrukfParams {
     ekf.visit(v);
     v("ut_alpha", alpha, "unscented spread alpha");
     v("ut_beta", beta, "unscented beta (2 for a Gaussian)");
-    v("ut_kappa", kappa, "unscented kappa (n + kappa > 0, n = 4)");
+    v("ut_kappa", kappa,
+      "unscented kappa (n + kappa > 0; n = 4, or 6 on a robot with two tags or more)");
   }
 };
 
-class UwbSrukf : public UwbEkf {
+template <int N>
+class UwbSrukfT : public UwbEkfT<N> {
  public:
-  UwbSrukf(const UwbSrukfParams& params, const EstimatorContext& context);
+  UwbSrukfT(const UwbSrukfParams& params, const EstimatorContext& context);
 
  protected:
+  using Base = UwbEkfT<N>;
+  using Base::p_;
+  using Base::stats_;
+  using Base::x_;
+  using typename Base::Covariance;
+  using typename Base::RangePrediction;
+  using typename Base::State;
   void onStart() override;
   void predictTo(double t) override;
   RangePrediction predictRange(const AcceptedRange& r) override;
@@ -129,9 +153,19 @@ class UwbSrukf : public UwbEkf {
 
  private:
   UwbSrukfParams sr_;
-  Eigen::Matrix4d s_ = Eigen::Matrix4d::Identity();  ///< P = S S^T
-  kalman::PointSet<4, 9> points_;
-  kalman::PointMoments<4, 1, 9> moments_;
+  Covariance s_ = Covariance::Identity();  ///< P = S S^T
+  kalman::PointSet<N, 2 * N + 1> points_;
+  kalman::PointMoments<N, 1, 2 * N + 1> moments_;
 };
+
+extern template class UwbCkfT<4>;
+extern template class UwbCkfT<6>;
+extern template class UwbIahCkfT<4>;
+extern template class UwbIahCkfT<6>;
+extern template class UwbSrukfT<4>;
+extern template class UwbSrukfT<6>;
+using UwbCkf = UwbCkfT<4>;
+using UwbIahCkf = UwbIahCkfT<4>;
+using UwbSrukf = UwbSrukfT<4>;
 
 }  // namespace uwbloc::loc

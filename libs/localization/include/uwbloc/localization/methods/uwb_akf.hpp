@@ -70,6 +70,8 @@ struct UwbAkfParams {
   double r_floor = 0.01;     ///< smallest std of R̂'s eigenvalues [m] (the positivity guard)
   AkfMeans means = AkfMeans::kAuto;
   AkfRFrom r_from = AkfRFrom::kAuto;
+  EkfTags tags = EkfTags::kAuto;          ///< mode=ranges: the tags read (uwb-ekf's key)
+  EkfStart start = EkfStart::kStartPose;  ///< mode=ranges: where it starts (uwb-ekf's key)
   /// Whether R̂ comes from the post-fit residual, `auto` resolved for the mode.
   bool rFromResidual() const {
     return r_from == AkfRFrom::kResidual || (r_from == AkfRFrom::kAuto && mode == AkfMode::kRanges);
@@ -112,6 +114,12 @@ struct UwbAkfParams {
       "what the estimated R is learnt from: innovation (eq. 25: e e' - H P H'), residual (the "
       "post-fit residual eps: eps eps' + H P H', positive by construction), or auto: "
       "innovation on the fix, residual on the ranges");
+    v("start", start,
+      "mode=ranges: start at the start pose (start) or at the first multilateration fix (fix); "
+      "on the fix it always starts from the fix");
+    v("tags", tags,
+      "mode=ranges: auto: every tag on the robot when it carries two or more (the pose and "
+      "heading from the lever arms), else the primary tag; primary: the primary tag's only");
     v("means", means,
       "noise means estimated besides the covariances: qr (q-hat and r-hat, eq. 16), q, r, none, "
       "or auto: none on the fix (neither can be told from the state there), r (each anchor's "
@@ -142,19 +150,30 @@ class UwbAkf : public UwbKf {
   kalman::SageHusaMeasurement<2> measurement_;
 };
 
-/// mode=ranges.
-class UwbAkfRanges : public UwbEkf {
+/// mode=ranges: on the primary tag (N = 4) or, with two tags or more and tags=auto, on the
+/// robot's pose through every tag (N = 6, uwb_ekf.hpp), the statistics then per anchor-tag link.
+template <int N>
+class UwbAkfRanges : public UwbEkfT<N> {
  public:
   UwbAkfRanges(const UwbAkfParams& params, const EstimatorContext& context);
 
  protected:
+  using Base = UwbEkfT<N>;
+  using Base::p_;
+  using Base::params_;
+  using Base::stats_;
+  using Base::t_;
+  using Base::x_;
   void onStart() override;
   bool updateWithRange(const AcceptedRange& r) override;
 
  private:
   UwbAkfParams akf_;
-  std::map<int, kalman::SageHusaMeasurement<1>> anchors_;
+  std::map<RangeQuarantine::Link, kalman::SageHusaMeasurement<1>> links_;
 };
+
+extern template class UwbAkfRanges<4>;
+extern template class UwbAkfRanges<6>;
 
 /// The estimator for `params.mode`.
 std::unique_ptr<Estimator> makeUwbAkf(const UwbAkfParams& params, const EstimatorContext& context);

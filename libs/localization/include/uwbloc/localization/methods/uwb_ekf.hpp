@@ -17,11 +17,28 @@
 // The range model and q are learnt at the start (calib, default 60 s): the first seconds of
 // ranges go to graph-uwb as well (LearningStart), and the filter then corrects every range by the
 // learnt scale (and biases, with calib_bias), and widens sigma and raises q to what was learnt
-// (never below their start values); see UwbEkf::learn.
+// (never below their start values); see UwbEkfT::learn.
+//
+// On a robot with two tags or more (tags=auto), the filter and every range filter built on it
+// (UwbEkfT<6>) estimates the robot's pose and its rates, [x y vx vy theta omega] (white
+// acceleration with the velocity decay above, white angular acceleration yaw_accel_psd), updated
+// by each range of every tag through its lever arm l_k:
+//
+//   r = || ((x, y) + R(theta) l_k_xy, z_k) - a ||,
+//   dr/dtheta = (d_x (-s l_x - c l_y) + d_y (c l_x - s l_y)) / r,   d = tag - a.
+//
+// Two tags a known distance apart observe the heading from the ranges alone, so the heading is
+// known while the robot stands still, which the one-tag filter (UwbEkfT<4>: the tag's position,
+// the heading from the direction of motion) cannot know. The quarantine is then per anchor-tag
+// link (a body blocks one tag's line of sight, not the anchor's). The start: the start pose
+// (position std start_sigma, heading std start_sigma_yaw), or an epoch of ranges solved by
+// uwb-multitag's Gauss-Newton (solveMultitag); the heading counts as observed (heading_valid)
+// while its std is below kObservedHeadingStd.
 #pragma once
 
 #include <Eigen/Core>
 #include <map>
+#include <memory>
 
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/localization/kalman/kalman.hpp"
@@ -38,8 +55,15 @@ constexpr std::array<EnumName<EkfStart>, 2> enumNames(EkfStart) {
   return {{{EkfStart::kStartPose, "start"}, {EkfStart::kFix, "fix"}}};
 }
 
+/// Which of the robot's tags the range filters read.
+enum class EkfTags { kAuto, kPrimary };
+constexpr std::array<EnumName<EkfTags>, 2> enumNames(EkfTags) {
+  return {{{EkfTags::kAuto, "auto"}, {EkfTags::kPrimary, "primary"}}};
+}
+
 struct UwbEkfParams {
   RangeFrontEndParams front;
+  EkfTags tags = EkfTags::kAuto;
   EkfStart start = EkfStart::kStartPose;
   double start_sigma = 0.5;    ///< std of the start pose's position [m]
   AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
@@ -53,10 +77,15 @@ struct UwbEkfParams {
   double readmit_tol = 1.0;    ///< and each within max(this, 3 sigma) of the prediction [m]
   double init_residual = 0.5;  ///< largest residual norm of an initial fix [m]
   double reinit_std = 3.0;     ///< predicted position std that restarts from a fix [m]; 0 = off
+  double yaw_accel_psd = 1.0;  ///< two tags or more: white angular acceleration [rad^2/s^3]
+  double start_sigma_yaw = 20.0;  ///< two tags or more: heading std at the start pose [deg]
 
   template <class V>
   void visit(V&& v) {
     front.visit(v);
+    v("tags", tags,
+      "auto: every tag on the robot when it carries two or more (the pose and heading from the "
+      "lever arms), else the primary tag; primary: the primary tag's ranges only");
     v("start", start, "start at the start pose (start) or at the first multilateration fix (fix)");
     v("start_sigma", start_sigma, "std of the start pose's position [m]");
     v("window", epoch_window, "epoch window of the initial fix [s], or auto");
@@ -74,6 +103,9 @@ struct UwbEkfParams {
     v("reinit_std", reinit_std,
       "restart from a multilateration fix when an outage has grown the predicted position std "
       "beyond this [m]; 0 = never");
+    v("yaw_accel_psd", yaw_accel_psd,
+      "two tags or more: white angular acceleration density [rad^2/s^3]");
+    v("start_sigma_yaw", start_sigma_yaw, "two tags or more: heading std at the start pose [deg]");
   }
 };
 
@@ -107,11 +139,38 @@ double readmitTolerance(const UwbEkfParams& params);
 /// predicted `dt` ahead (covariance only: F P F^T + Q), for the restart after an outage.
 double predictedPositionStd(const Eigen::Matrix4d& p, double dt, const UwbEkfParams& params);
 
-class UwbEkf : public UwbEstimator {
+/// uwb-ekf, and the base of every range filter: N = 4, the primary tag's position and velocity
+/// [x y vx vy]; N = 6, the robot's pose and rates [x y vx vy theta omega] from every tag (see
+/// the top of this file).
+template <int N>
+class UwbEkfT : public UwbEstimator {
+  static_assert(N == 4 || N == 6, "the range filters' state is [x y vx vy] or [x y vx vy th w]");
+
  public:
-  UwbEkf(const UwbEkfParams& params, const EstimatorContext& context);
-  UwbEkf(const UwbEkf&) = delete;  // start_'s callbacks hold `this`
-  UwbEkf& operator=(const UwbEkf&) = delete;
+  static constexpr bool kMultitag = N == 6;
+  /// The heading std under which the heading counts as observed (heading_valid) [rad]: 30
+  /// degrees. A start from one tag's epoch has pi; the start pose's is start_sigma_yaw. How well
+  /// it is known is the covariance's to say: heading_valid means observed, as for every method.
+  static constexpr double kObservedHeadingStd = 30.0 * M_PI / 180.0;
+  static constexpr int kTheta = 4;  ///< the heading's index in the state (N = 6)
+  static constexpr int kOmega = 5;
+  using State = kalman::Vec<N>;
+  using Covariance = kalman::Mat<N, N>;
+  using Jacobian = kalman::Mat<1, N>;
+
+  UwbEkfT(const UwbEkfParams& params, const EstimatorContext& context);
+  UwbEkfT(const UwbEkfT&) = delete;  // start_'s callbacks hold `this`
+  UwbEkfT& operator=(const UwbEkfT&) = delete;
+
+  /// The measured 3D distance from the tag to `anchor`, and, when asked, its Jacobian. N = 4:
+  /// the tag at (x, y, tag height), [dx/h, dy/h, 0, 0] (PF-IBAS paper eq. (3)-(4) before the
+  /// height projection); N = 6: the tag at the robot's pose plus its lever arm, the heading's
+  /// column included.
+  static double rangeModel(const State& x, const Eigen::Vector3d& tag_on_robot,
+                           const Eigen::Vector3d& anchor, Jacobian* hj = nullptr);
+  static double rangeModel(const State& x, const AcceptedRange& r, Jacobian* hj = nullptr) {
+    return rangeModel(x, r.measurement.tag_on_robot, r.anchor, hj);
+  }
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
@@ -130,21 +189,37 @@ class UwbEkf : public UwbEstimator {
     double z = 0.0;
     double s = 0.0;
   };
-  /// The time update to t (t > t_): constant velocity, x <- F x, P <- F P F^T + Q.
+  /// The time update to t (t > t_): x <- F x, P <- F P F^T + Q (transition).
   virtual void predictTo(double t);
   /// EKF: h(x) and H P H^T + R with the Jacobian of rangeModel (kept for correctWithRange).
   virtual RangePrediction predictRange(const AcceptedRange& r);
   /// EKF: the Joseph update with the innovation y = range - prediction.z.
   virtual void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred);
-  /// The gate's and the quarantine's verdict on anchor `id`'s range with this innovation; a
+  /// The gate's and the quarantine's verdict on this range's link with this innovation; a
   /// refused range is counted.
-  bool admit(int id, double innovation, bool in_gate);
+  bool admit(const AcceptedRange& r, double innovation, bool in_gate);
+  /// The range's link: (anchor, 0) with one tag, (anchor, tag) with several; the key of the
+  /// quarantine and of the adaptive filters' per-link noise statistics.
+  RangeQuarantine::Link link(const AcceptedRange& r) const {
+    return {r.measurement.anchor_id, kMultitag ? r.measurement.tag_id : 0};
+  }
+  /// Whether a link's noise statistics are the anchor's reported ones (estimated_noise is per
+  /// anchor): every link with one tag, the primary tag's with several.
+  bool reportsNoise(const RangeQuarantine::Link& l) const {
+    return !kMultitag || l.second == primary_tag_;
+  }
+  /// The point filters' bound on the heading's spread (N = 6): the 2N cubature or unscented
+  /// points lie sqrt(N) sigma_theta about the heading, and beyond +-pi they wrap round the circle
+  /// and their moments say nothing of it, so the heading can never be learnt again. A heading std
+  /// above kMaxPointHeadingStd (60 deg: the points within +-147 deg) is scaled down to it, its
+  /// correlations kept (the state's heading rescaled); counted as heading_std_bounded. True when
+  /// `p` was changed.
+  static constexpr double kMaxPointHeadingStd = 60.0 * M_PI / 180.0;
+  bool boundHeadingSpread(Covariance& p);
+  /// The transition over dt: F and Q of the constant-velocity model (N = 6: and of the white
+  /// angular acceleration), the densities scaled by `scale`.
+  void transition(double dt, Covariance& f, Covariance& q, double scale = 1.0) const;
 
-  /// The measured 3D distance h(x) from the tag at (x, y, tag height) of state `x` to the
-  /// anchor, and, when asked, its Jacobian [dx/h, dy/h, 0, 0] (PF-IBAS paper eq. (3)-(4) before
-  /// the height projection).
-  static double rangeModel(const Eigen::Vector4d& x, const AcceptedRange& r,
-                           Eigen::Matrix<double, 1, 4>* hj = nullptr);
   double dt(double t) const { return t - t_; }
   double rangeVariance() const { return params_.front.sigmaValue() * params_.front.sigmaValue(); }
   /// The variance of this range: the method's, scaled by what an NLOS model said of it.
@@ -152,11 +227,11 @@ class UwbEkf : public UwbEstimator {
 
   UwbEkfParams params_;
   double t_ = 0.0;
-  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
-  Eigen::Matrix4d p_ = Eigen::Matrix4d::Identity();
+  State x_ = State::Zero();
+  Covariance p_ = Covariance::Identity();
 
  private:
-  Eigen::Matrix<double, 1, 4> hj_;  ///< the Jacobian of the last predictRange
+  Jacobian hj_;  ///< the Jacobian of the last predictRange
   bool initialise(const AcceptedRange& r);
   /// One event through the filter (after the learning start).
   std::optional<PoseEstimate> step(const Event& event);
@@ -164,16 +239,33 @@ class UwbEkf : public UwbEstimator {
   void learn(const EstimatorStatistics& learnt);
   PoseEstimate output(const Eigen::Vector3d& tag_on_robot) const;
 
+  int primary_tag_ = 0;
   std::optional<Eigen::Vector3d> start_pose_;  ///< used once, for the first start
   EpochBuffer init_epochs_;
-  HeadingFromMotion heading_;
+  HeadingFromMotion heading_;  ///< N = 4: the heading from the direction of motion
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
-  RangeQuarantine quarantine_;     ///< by anchor
-  RangeNoiseModel noise_;          ///< the learnt bias and scale each range is corrected by
+  RangeQuarantine quarantine_;  ///< by link
+  RangeNoiseModel noise_;       ///< the learnt bias and scale each range is corrected by
   LearningStart start_;
   LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learn(s); };
   LearningStart::Step step_ = [this](const Event& e) { return step(e); };
 };
+
+extern template class UwbEkfT<4>;
+extern template class UwbEkfT<6>;
+
+using UwbEkf = UwbEkfT<4>;
+using UwbEkfMultitag = UwbEkfT<6>;
+
+/// A range filter's estimator for `context`: Filter<6> on every tag when the robot carries two
+/// tags or more and `tags` is auto, else Filter<4> on the primary tag.
+template <template <int> class Filter, class Params>
+std::unique_ptr<Estimator> makeRangeFilter(const Params& params, EkfTags tags,
+                                           const EstimatorContext& context) {
+  if (tags == EkfTags::kAuto && context.robot_tags.size() >= 2)
+    return std::make_unique<Filter<6>>(params, context);
+  return std::make_unique<Filter<4>>(params, context);
+}
 
 }  // namespace uwbloc::loc

@@ -73,9 +73,12 @@ struct UwbShkfParams {
   }
 };
 
-class UwbShkf : public UwbEkf {
+/// On the primary tag (N = 4) or, with two tags or more, on the robot's pose through every tag
+/// (N = 6, uwb_ekf.hpp), the statistics then per anchor-tag link.
+template <int N>
+class UwbShkfT : public UwbEkfT<N> {
  public:
-  UwbShkf(const UwbShkfParams& params, const EstimatorContext& context);
+  UwbShkfT(const UwbShkfParams& params, const EstimatorContext& context);
 
   /// One anchor's statistics.
   struct AnchorStatistic {
@@ -90,12 +93,23 @@ class UwbShkf : public UwbEkf {
   static double adaptiveFactor(double change, double c0, double c1);
 
  protected:
-  void onStart() override { anchors_.clear(); }
+  using Base = UwbEkfT<N>;
+  using Base::p_;
+  using Base::params_;
+  using Base::stats_;
+  using Base::t_;
+  using Base::x_;
+  using typename Base::Covariance;
+  void onStart() override { links_.clear(); }
   bool updateWithRange(const AcceptedRange& r) override;
 
  private:
   UwbShkfParams sh_;
-  std::map<int, AnchorStatistic> anchors_;
+  std::map<RangeQuarantine::Link, AnchorStatistic> links_;
 };
+
+extern template class UwbShkfT<4>;
+extern template class UwbShkfT<6>;
+using UwbShkf = UwbShkfT<4>;
 
 }  // namespace uwbloc::loc
