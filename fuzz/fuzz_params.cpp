@@ -19,22 +19,30 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } catch (const uwbloc::loc::ParamError&) {
   } catch (const std::invalid_argument&) {
   }
-  try {
-    auto est = uwbloc::loc::Registry::builtin().create(text, ctx);
-    // A legal but large particle count (up to 1e6) takes seconds per range under the
-    // sanitizers: parsing and construction are fuzzed, the filter's speed is not.
-    for (const auto& p : est->parameters())
-      if ((p.key == "n" || p.key == "init_n" || p.key == "relocalise_n") &&
-          std::strtod(p.value.c_str(), nullptr) > 1e4)
-        return 0;
-    uwbloc::uwb::Range r;
-    r.t = 1.0;
-    r.anchor_id = 1;
-    r.range = 3.0;
-    est->process(r);
-    est->finishAll();
-  } catch (const uwbloc::loc::ParamError&) {
-  } catch (const std::invalid_argument&) {
+  // Each spec on a robot with one tag and on one with two (the range filters' pose state).
+  for (const bool two_tags : {false, true}) {
+    if (two_tags) ctx.robot_tags = {0, 2};
+    try {
+      auto est = uwbloc::loc::Registry::builtin().create(text, ctx);
+      // A legal but large particle count (up to 1e6) takes seconds per range under the
+      // sanitizers: parsing and construction are fuzzed, the filter's speed is not.
+      for (const auto& p : est->parameters())
+        if ((p.key == "n" || p.key == "init_n" || p.key == "relocalise_n") &&
+            std::strtod(p.value.c_str(), nullptr) > 1e4)
+          return 0;
+      for (const int tag : {0, 2}) {
+        uwbloc::uwb::Range r;
+        r.t = 1.0;
+        r.anchor_id = 1;
+        r.range = 3.0;
+        r.tag_id = tag;
+        r.tag_on_robot = Eigen::Vector3d(tag == 0 ? 0.1 : -0.1, 0.1, 1.0);
+        est->process(r);
+      }
+      est->finishAll();
+    } catch (const uwbloc::loc::ParamError&) {
+    } catch (const std::invalid_argument&) {
+    }
   }
   return 0;
 }
