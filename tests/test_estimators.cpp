@@ -640,14 +640,15 @@ TEST(Registry, ParametersOutsideTheirLimitsAreErrors) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {0, 0, 0}}};
   ctx.initial_pose = Eigen::Vector3d::Zero();
-  for (const auto& [spec, key] :
-       std::vector<std::pair<std::string, std::string>>{{"uwb-pf:n=1000000000", "'n'"},
-                                                        {"uwb-pf:a3=1e308", "'a3'"},
-                                                        {"lidar-icp:min_dist=-1", "'min_dist'"},
-                                                        {"uwb-kf:q=-1", "'q'"},
-                                                        {"uwb-ekf:sigma=0", "'sigma'"},
-                                                        {"uwb-ekf:sigma=inf", "'sigma'"},
-                                                        {"uwb-gn:window=-2", "'window'"}}) {
+  for (const auto& [spec, key] : std::vector<std::pair<std::string, std::string>>{
+           {"uwb-pf:n=1000000000", "'n'"},
+           {"uwb-pf:a3=1e308", "'a3'"},
+           {"lidar-icp:min_dist=-1", "'min_dist'"},
+           {"uwb-kf:q=-1", "'q'"},
+           {"uwb-ekf:sigma=0", "'sigma'"},
+           {"uwb-ekf:sigma=inf", "'sigma'"},
+           {"uwb-gn:window=-2", "'window'"},
+           {"uwb-ckf:start_sigma_yaw=1e300", "'start_sigma_yaw'"}}) {
     try {
       loc::Registry::builtin().create(spec, ctx);
       ADD_FAILURE() << spec << " was accepted";
