@@ -89,15 +89,11 @@ bool UwbEkfT<N>::boundHeadingSpread(Covariance& p) {
 
 template <int N>
 void UwbEkfT<N>::predictTo(double t) {
-  if constexpr (kMultitag) {
-    Covariance f, q;
-    transition(t - t_, f, q);
-    x_ = f * x_;
-    x_(kTheta) = wrapAngle(x_(kTheta));
-    p_ = f * p_ * f.transpose() + q;
-  } else {
-    kalman::predictConstantVelocity(x_, p_, t - t_, params_.accel_psd, params_.velocity_tau);
-  }
+  Covariance f, q;
+  transition(t - t_, f, q);
+  x_ = f * x_;
+  if constexpr (kMultitag) x_(kTheta) = wrapAngle(x_(kTheta));
+  p_ = f * p_ * f.transpose() + q;
 }
 
 template <int N>
