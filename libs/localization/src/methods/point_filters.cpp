@@ -104,9 +104,7 @@ bool UwbIahCkfT<N>::updateWithRange(const AcceptedRange& r) {
       ++stats_.events["r_kept_positive"];
     }
     ++stat.k;
-    if (this->reportsNoise(link))
-      stats_.estimated_noise[link.first] = {stat.r(0), std::sqrt(stat.R(0, 0)),
-                                            stat.k - iah_.priorSteps()};
+    this->reportNoise(link, {stat.r(0), std::sqrt(stat.R(0, 0)), stat.k - iah_.priorSteps()});
   }
   return true;
 }

@@ -116,9 +116,7 @@ bool UwbAkfRanges<N>::updateWithRange(const AcceptedRange& r) {
   if (out.diverged) ++stats_.events["divergence_inflated"];
   if (out.r_projected) ++stats_.events["r_kept_positive"];
   // The anchor's range model as the filter now sees it: r̂ its bias, sqrt(R̂) its std.
-  if (this->reportsNoise(link))
-    stats_.estimated_noise[link.first] = {anchor.r(0), std::sqrt(anchor.R(0, 0)),
-                                          anchor.k - akf_.priorSteps()};
+  this->reportNoise(link, {anchor.r(0), std::sqrt(anchor.R(0, 0)), anchor.k - akf_.priorSteps()});
   return true;
 }
 

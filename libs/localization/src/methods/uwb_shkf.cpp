@@ -87,7 +87,7 @@ bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
   if (sh_.bias) a.bias = (1.0 - d) * a.bias + d * innovation;
   a.last_e = e;
   ++a.k;
-  if (this->reportsNoise(link)) stats_.estimated_noise[id] = {a.bias, std::sqrt(a.r), a.k};
+  this->reportNoise(link, {a.bias, std::sqrt(a.r), a.k});
   // The update, with the range's NLOS probability widening its noise.
   const Eigen::Matrix<double, 1, 1> rv(a.r / (1.0 - p_nlos));
   const auto inn = kalman::innovate<N, 1>(p_, Eigen::Matrix<double, 1, 1>(e), hj, rv);

@@ -203,10 +203,10 @@ class UwbEkfT : public UwbEstimator {
   RangeQuarantine::Link link(const AcceptedRange& r) const {
     return {r.measurement.anchor_id, kMultitag ? r.measurement.tag_id : 0};
   }
-  /// Whether a link's noise statistics are the anchor's reported ones (estimated_noise is per
-  /// anchor): every link with one tag, the primary tag's with several.
-  bool reportsNoise(const RangeQuarantine::Link& l) const {
-    return !kMultitag || l.second == primary_tag_;
+  /// Reports a link's noise statistics as its anchor's (estimated_noise is per anchor): every
+  /// link's with one tag, the primary tag's with several.
+  void reportNoise(const RangeQuarantine::Link& l, const NoiseEstimate& estimate) {
+    if (!kMultitag || l.second == primary_tag_) stats_.estimated_noise[l.first] = estimate;
   }
   /// The point filters' bound on the heading's spread (N = 6): the 2N cubature or unscented
   /// points lie sqrt(N) sigma_theta about the heading, and beyond +-pi they wrap round the circle
