@@ -61,7 +61,8 @@ const bool registered = [] {
         ->Unit(benchmark::kMillisecond);
   for (const std::string spec :
        {"uwb-multitag", "uwb-multitag:smooth=false", "uwb-ekf", "uwb-ekf:tags=primary", "uwb-ckf",
-        "uwb-srukf", "uwb-shkf", "federated-ekf", "uwb-pf", "graph-uwb-odom"})
+        "uwb-srukf", "uwb-shkf", "federated-ekf", "uwb-gn", "uwb-gn:tags=primary", "uwb-kf",
+        "uwb-kf:tags=primary", "uwb-pf", "graph-uwb-odom"})
     benchmark::RegisterBenchmark(("multitag_room/" + spec).c_str(), replayMultitag, spec)
         ->Unit(benchmark::kMillisecond);
   return true;

@@ -32,7 +32,7 @@ done
 for d in fast fast_cal; do
   echo "== dynamic $d"
   "$uwbloc" compare -d "$out/$d/dataset.ini" \
-    -m uwb-multitag,uwb-multitag:smooth=false,uwb-ekf,uwb-ekf:tags=primary,uwb-gn,uwb-kf \
+    -m uwb-multitag,uwb-multitag:smooth=false,uwb-ekf,uwb-ekf:tags=primary,uwb-gn,uwb-gn:tags=primary,uwb-kf,uwb-kf:tags=primary \
     -o "$out/run_$d" 2> /dev/null \
     | grep -E "^(method|uwb-)"
 done

@@ -1,5 +1,6 @@
 // Multilateration: exact agreement without noise, efficiency against the Cramér-Rao bound,
-// degenerate geometry, height projection and the range model's Jacobian.
+// degenerate geometry, height projection, the range model's Jacobian, and the rigid fit of several
+// tags' points to their lever arms.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -7,6 +8,7 @@
 
 #include "uwbloc/uwb/multilateration.hpp"
 #include "uwbloc/uwb/range_model.hpp"
+#include "uwbloc/uwb/rigid_fit.hpp"
 
 using namespace uwbloc::uwb;
 
@@ -118,4 +120,79 @@ TEST(RangeModel, JacobianMatchesNumeric) {
       EXPECT_NEAR(j(k), num, 1e-6) << "component " << k;
     }
   }
+}
+
+namespace {
+
+// The points of `body` placed by `pose`, measured with isotropic std `sigma`.
+std::vector<BodyPoint> placed(const uwbloc::Pose2& pose, const std::vector<Eigen::Vector2d>& body,
+                              double sigma) {
+  std::vector<BodyPoint> out;
+  for (const auto& b : body)
+    out.push_back(
+        {b, uwbloc::transformPoint(pose, b), sigma * sigma * Eigen::Matrix2d::Identity()});
+  return out;
+}
+
+}  // namespace
+
+TEST(RigidFit, RecoversThePoseExactlyAtAnyHeading) {
+  const std::vector<Eigen::Vector2d> three = {{-0.07, -0.14}, {-0.075, 0.14}, {0.20, 0.145}};
+  for (double deg : {-179.9, -120.0, -45.0, 0.0, 60.0, 135.0, 179.9})
+    for (size_t n : {2u, 3u}) {
+      const uwbloc::Pose2 truth(2.5, -1.2, deg * M_PI / 180.0);
+      const auto fit =
+          fitRigidBody(placed(truth, {three.begin(), three.begin() + static_cast<long>(n)}, 0.05));
+      ASSERT_TRUE(fit.has_value()) << deg << " " << n;
+      EXPECT_NEAR(fit->pose.x(), truth.x(), 1e-9) << deg;
+      EXPECT_NEAR(fit->pose.y(), truth.y(), 1e-9) << deg;
+      EXPECT_NEAR(uwbloc::wrapAngle(fit->pose.z() - truth.z()), 0.0, 1e-9) << deg;
+      EXPECT_NEAR(fit->chi2, 0.0, 1e-12) << deg;
+    }
+}
+
+// Two points at +-a on the body's x axis, each measured with std sigma: the position (at their
+// midpoint) has variance sigma^2 / 2 on each axis and the heading sigma^2 / (2 a^2). Stretching
+// the measured pair by d splits the stretch between them: chi2 = 2 (d / 2)^2 / sigma^2.
+TEST(RigidFit, CovarianceAndChiSquareAreTheAnalyticOnes) {
+  const double a = 0.2, sigma = 0.05, d = 0.04;
+  const uwbloc::Pose2 truth(1.0, 2.0, 0.7);
+  auto points = placed(truth, {{-a, 0.0}, {a, 0.0}}, sigma);
+  auto fit = fitRigidBody(points);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_NEAR(fit->covariance(0, 0), sigma * sigma / 2.0, 1e-12);
+  EXPECT_NEAR(fit->covariance(1, 1), sigma * sigma / 2.0, 1e-12);
+  EXPECT_NEAR(fit->covariance(2, 2), sigma * sigma / (2.0 * a * a), 1e-12);
+  EXPECT_NEAR(fit->covariance(0, 2), 0.0, 1e-12);
+  const Eigen::Vector2d along(std::cos(truth.z()), std::sin(truth.z()));
+  points[0].measured -= 0.5 * d * along;
+  points[1].measured += 0.5 * d * along;
+  fit = fitRigidBody(points);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_NEAR(fit->chi2, 2.0 * (d / 2.0) * (d / 2.0) / (sigma * sigma), 1e-9);
+  EXPECT_NEAR(fit->point_chi2[0], fit->point_chi2[1], 1e-9);
+  EXPECT_NEAR((fit->pose - truth).norm(), 0.0, 1e-9);
+}
+
+// A point measured less surely pulls the fit less: with full covariances, the fit weighs each
+// point by its own (here one point is 10x less sure along one axis, and is off along it).
+TEST(RigidFit, WeighsEachPointByItsCovariance) {
+  const uwbloc::Pose2 truth(0.0, 0.0, 0.0);
+  auto points = placed(truth, {{-0.2, 0.0}, {0.2, 0.0}, {0.0, 0.3}}, 0.02);
+  points[2].covariance(0, 0) = 0.2 * 0.2;
+  points[2].measured.x() += 0.1;
+  const auto fit = fitRigidBody(points);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_LT(std::abs(fit->pose.x()), 0.01);
+  EXPECT_GT(fit->point_chi2[2], 0.0);
+}
+
+TEST(RigidFit, RefusesWhatCannotGiveAHeading) {
+  EXPECT_FALSE(fitRigidBody(placed({0, 0, 0}, {{0.1, 0.1}}, 0.05)).has_value());
+  EXPECT_FALSE(fitRigidBody(placed({0, 0, 0}, {{0.1, 0.1}, {0.1, 0.1}}, 0.05)).has_value());
+  auto bad = placed({0, 0, 0}, {{-0.1, 0.0}, {0.1, 0.0}}, 0.05);
+  bad[0].covariance << 1.0, 2.0, 2.0, 1.0;  // not positive definite
+  EXPECT_FALSE(fitRigidBody(bad).has_value());
+  bad[0].covariance = Eigen::Matrix2d::Identity() * std::nan("");
+  EXPECT_FALSE(fitRigidBody(bad).has_value());
 }

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <random>
 #include <tuple>
@@ -282,6 +283,84 @@ TEST(UwbEkfMultitag, EveryRangeFilterGetsTheHeadingFromTwoTags) {
       }
     }
   }
+}
+
+// The per-epoch solvers (uwb-ls, uwb-gn, uwb-chan) and the filters on their fixes (uwb-kf,
+// uwb-akf, uwb-iakf, uwb-ctrv-ekf) read both tags of the two-tag room: each tag multilaterated on
+// its own against its own continuity track, and the lever arms fitted to the two points. The
+// heading is known while the robot stands, and the robot is placed far better than from the
+// primary tag alone, whose point gives no heading until the robot moves (the lever arm then
+// swings about the tag with a heading from the noisy motion: 0.19 m for uwb-gn on the three-tag
+// room against 0.03 m with every tag).
+TEST(EpochTags, EverySolverAndFixFilterGetsThePoseFromTwoTags) {
+  const data::Dataset ds = twoTagRoom();
+  for (const std::string method :
+       {"uwb-ls", "uwb-gn", "uwb-chan", "uwb-kf", "uwb-akf", "uwb-iakf", "uwb-ctrv-ekf"}) {
+    const auto h = headingWhileStanding(ds, method);
+    const auto two = eval::evaluateMethod(ds, method, 1, 1);
+    const auto one = eval::evaluateMethod(ds, method + ":tags=primary", 1, 1);
+    std::printf(
+        "[ HEADING  ] %s, two tags, standing: mean |heading error| %.2f deg, worst %.2f deg over "
+        "%ld estimates; whole run rmse_2d %.4f m, yaw rmse %.2f deg (primary tag alone: %.4f "
+        "m)\n",
+        method.c_str(), h.mean_deg, h.worst_deg, h.n, two.metrics.rmse_2d, two.metrics.rmse_yaw_deg,
+        one.metrics.rmse_2d);
+    EXPECT_GT(h.n, 50) << method;
+    EXPECT_LT(h.mean_deg, 10.0) << method;
+    EXPECT_LT(two.metrics.rmse_2d, 0.6 * one.metrics.rmse_2d) << method;
+    // A per-epoch heading from two points 0.28 m apart, each to about 5 cm: some 14 degrees.
+    EXPECT_LT(two.metrics.rmse_yaw_deg, method.find("kf") == std::string::npos ? 15.0 : 8.0)
+        << method;
+    EXPECT_GT(two.metrics.coverage, 0.99) << method;
+    const auto primary = eval::runMethod(ds, method + ":tags=primary", 1);
+    EXPECT_GT(primary.statistics.rejected.at("secondary_tag"), 0) << method;
+  }
+}
+
+// A tag that disagrees with the others is left out, and the others place the robot: a tag whose
+// ranges to one anchor read long (a reflection, 0.6 m for 30 s) fails its own fix's residual
+// test; a tag whose lever arm is wrong (0.3 m, for 30 s) fits its ranges but not the others'
+// rigid fit. With two tags there is no telling which is wrong (and a lever arm wrong across their
+// baseline only turns the pair): the epoch falls back to the primary tag's own fix.
+TEST(EpochTags, ATagThatDisagreesWithTheOthersIsLeftOut) {
+  // `tag`'s ranges from 30 to 60 s changed by `change`.
+  auto changed = [](data::Dataset ds, int tag, const std::function<void(uwb::Range&)>& change) {
+    for (auto& e : ds.events)
+      if (auto* r = std::get_if<uwb::Range>(&e);
+          r && r->tag_id == tag && r->t > ds.start_time + 30.0 && r->t < ds.start_time + 60.0)
+        change(*r);
+    return ds;
+  };
+  auto reflected = [](uwb::Range& r) { r.range += r.anchor_id == 1 ? 0.6 : 0.0; };
+  auto misplaced = [](uwb::Range& r) { r.tag_on_robot.x() += 0.3; };
+  auto left_out = [](const eval::RunResult& run) {
+    const auto it = run.statistics.rejected.find("tag_fix_left_out");
+    return it == run.statistics.rejected.end() ? 0L : it->second;
+  };
+  const data::Dataset three = test::simulatedScenario("multitag_room", 1);
+  const double clean = eval::evaluateMethod(three, "uwb-gn", 1, 1).metrics.rmse_2d;
+  for (const auto& [what, change] :
+       std::vector<std::pair<std::string, std::function<void(uwb::Range&)>>>{
+           {"one anchor's ranges 0.6 m long", reflected}, {"its lever arm 0.3 m off", misplaced}}) {
+    const data::Dataset bad = changed(three, 3, change);
+    const auto summary = eval::evaluateMethod(bad, "uwb-gn", 1, 1);
+    const auto run = eval::runMethod(bad, "uwb-gn", 1);
+    std::printf(
+        "[ TAGS     ] uwb-gn, three tags, tag 3 with %s for 30 s: rmse_2d %.4f m (clean %.4f), "
+        "yaw rmse %.2f deg, %ld of its ranges left out\n",
+        what.c_str(), summary.metrics.rmse_2d, clean, summary.metrics.rmse_yaw_deg, left_out(run));
+    EXPECT_GT(left_out(run), 4L * 250) << what;  // of some 300 epochs
+    EXPECT_LT(summary.metrics.rmse_2d, 1.2 * clean) << what;
+  }
+  // Along the two tags' baseline (0.28 -> 0.58 m apart): across it, the pair would only turn.
+  const auto two = eval::runMethod(
+      changed(twoTagRoom(), 2, [](uwb::Range& r) { r.tag_on_robot.y() += 0.3; }), "uwb-gn", 1);
+  ASSERT_GT(two.statistics.events.count("tags_fix_inconsistent"), 0u);
+  std::printf(
+      "[ TAGS     ] two tags, tag 2's lever arm 0.3 m off for 30 s: %ld epochs without a fit\n",
+      two.statistics.events.at("tags_fix_inconsistent"));
+  EXPECT_GT(two.statistics.events.at("tags_fix_inconsistent"), 250);
+  for (const auto& e : two.trajectory) ASSERT_TRUE(e.pose.allFinite()) << e.t;
 }
 
 // The point filters after the heading has gone unobserved: tag 2's ranges are dropped for 30 s
@@ -573,6 +652,19 @@ TEST(Lias, StaticCalibrationCarriesToTheFastDynamicRun) {
   EXPECT_LT(ekf.metrics.rmse_2d, 0.05);
   EXPECT_LT(ekf.metrics.rmse_yaw_deg, 7.5);
   EXPECT_LT(ekf.metrics.rmse_2d, 0.6 * ekf_one.metrics.rmse_2d);
+  // So do the per-epoch solver and the filter on its fixes: each tag multilaterated on its own,
+  // the lever arms fitted to the points (0.235 and 0.106 m on tag 0 alone).
+  for (const std::string method : {"uwb-gn", "uwb-kf"}) {
+    const auto all = eval::evaluateMethod(fast, method, 1, 1);
+    const auto one = eval::evaluateMethod(fast, method + ":tags=primary", 1, 1);
+    std::printf(
+        "[ LIAS     ] fast run, static calibration: %s rmse_2d %.4f m, yaw rmse %.2f deg; on "
+        "tag 0 alone %.4f m\n",
+        method.c_str(), all.metrics.rmse_2d, all.metrics.rmse_yaw_deg, one.metrics.rmse_2d);
+    EXPECT_LT(all.metrics.rmse_2d, 0.05) << method;
+    EXPECT_LT(all.metrics.rmse_yaw_deg, 7.5) << method;
+    EXPECT_LT(all.metrics.rmse_2d, 0.6 * one.metrics.rmse_2d) << method;
+  }
 }
 
 }  // namespace

@@ -39,6 +39,11 @@ int primaryTag(const EstimatorContext& context) {
              : *std::min_element(context.robot_tags.begin(), context.robot_tags.end());
 }
 
+TagUse tagUse(RobotTags tags, const EstimatorContext& context) {
+  return tags == RobotTags::kAuto && context.robot_tags.size() >= 2 ? TagUse::kAll
+                                                                    : TagUse::kPrimary;
+}
+
 RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb::Anchor> anchors,
                              std::shared_ptr<const nlos::Model> nlos, TagUse tags, int primary_tag)
     : params_(params),
@@ -223,8 +228,10 @@ EpochUwbEstimator::EpochUwbEstimator(const RangeFrontEndParams& params,
                                      TagUse tags, const RangeLearningParams& learning,
                                      const AutoDouble* q)
     : UwbEstimator(params, context, tags),
+      tags_(tags),
+      primary_tag_(primaryTag(context)),
       epochs_(window),
-      continuity_(FixContinuityParams{params.iq_max_speed, params.iq_floor}),
+      primary_track_{FixContinuity(FixContinuityParams{params.iq_max_speed, params.iq_floor})},
       initial_pose_(context.initial_pose),
       initial_time_(context.initial_time),
       sigma_auto_(params.sigma.isAuto()),
@@ -241,11 +248,14 @@ void EpochUwbEstimator::learn(const EstimatorStatistics& learnt) {
     sigma_ = noise_.widened(sigma_, stats_);
   countLearnt(learnt, stats_);
   // The learnt path's speed, three times its RMS, where it exceeds the plausible one.
-  if (learnt.mean_square_speed)
-    continuity_.raiseMaxSpeed(3.0 * std::sqrt(*learnt.mean_square_speed));
   // The continuity track's acceleration: twice the density the learnt path showed, so that its
-  // gate admits motion livelier than the first minute's.
-  if (learnt.estimated_accel_psd) continuity_.setAccelPsd(2.0 * *learnt.estimated_accel_psd);
+  // gate admits motion livelier than the first minute's. Every tag's track.
+  auto adjust = [&learnt](FixContinuity& c) {
+    if (learnt.mean_square_speed) c.raiseMaxSpeed(3.0 * std::sqrt(*learnt.mean_square_speed));
+    if (learnt.estimated_accel_psd) c.setAccelPsd(2.0 * *learnt.estimated_accel_psd);
+  };
+  adjust(primary_track_.continuity);
+  for (auto& [tag, t] : other_tracks_) adjust(t.continuity);
 }
 
 std::optional<PoseEstimate> EpochUwbEstimator::step(const Event& event) {
@@ -266,13 +276,28 @@ std::vector<PoseEstimate> EpochUwbEstimator::doFinishAll() {
   return out;
 }
 
+EpochUwbEstimator::TagTrack& EpochUwbEstimator::track(int tag) {
+  if (tag == primary_tag_) return primary_track_;
+  auto it = other_tracks_.find(tag);
+  if (it == other_tracks_.end())
+    it = other_tracks_.emplace(tag, TagTrack{primary_track_.continuity.fresh()}).first;
+  return it->second;
+}
+
 std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver,
                                                     const std::vector<AcceptedRange>& epoch,
                                                     std::vector<uwb::PlanarRange> planar,
                                                     bool continuity, bool deskew) {
+  return epochFixOn(primary_track_, solver, epoch, std::move(planar), continuity, deskew);
+}
+
+std::optional<uwb::Fix> EpochUwbEstimator::epochFixOn(TagTrack& track, MultilaterationSolver solver,
+                                                      const std::vector<AcceptedRange>& epoch,
+                                                      std::vector<uwb::PlanarRange> planar,
+                                                      bool continuity, bool deskew) {
   if (continuity && deskew) {
     const double t = epochTime(epoch);
-    if (auto motion = continuity_.motion(t))
+    if (auto motion = track.continuity.motion(t))
       planar = deskewRanges(epoch, std::move(planar), t, *motion);
   }
   const uwb::Fix fix = multilaterate(solver, planar);
@@ -280,8 +305,8 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver
     // Two ranges give no fix, but the continuity track follows the intersection it predicts, so
     // that the next fix is judged from a recent position (emitting it as a fix measured worse:
     // Hanyang NLOS A1, uwb-kf 0.837 -> 0.900 m).
-    if (continuity && continuity_seeded_ && planar.size() == 2 &&
-        continuity_.checkTwo(epochTime(epoch), planar).fix)
+    if (continuity && track.seeded && planar.size() == 2 &&
+        track.continuity.checkTwo(epochTime(epoch), planar).fix)
       ++stats_.events[toString(Continuity::kTwoRanges)];
     countRejection(std::string("epoch_") + uwb::toString(fix.status));
     return std::nullopt;
@@ -289,19 +314,138 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver
   if (!continuity) return fix;
   std::optional<Eigen::Vector2d> seed;
   if (initial_pose_) seed = tagFromRobot(*initial_pose_, epoch.front().measurement.tag_on_robot);
-  return continuityChecked(
-             epoch, fix, planar, [&](const auto& subset) { return multilaterate(solver, subset); },
+  return checkedOn(
+             track, epoch, fix, planar,
+             [&](const auto& subset) { return multilaterate(solver, subset); },
              Eigen::Vector2d::Zero(), seed)
       .fix;
+}
+
+namespace {
+// The 99.9 % point of the chi-square distribution with k degrees of freedom (Wilson-Hilferty:
+// within 3 % of the exact value from k = 1: 11.2 against 10.83).
+double chiSquare999(int k) {
+  const double a = 2.0 / (9.0 * k);
+  return k * std::pow(1.0 - a + 3.0902 * std::sqrt(a), 3);
+}
+}  // namespace
+
+TagsEpoch EpochUwbEstimator::tagsEpoch(MultilaterationSolver solver,
+                                       const std::vector<AcceptedRange>& epoch, bool continuity,
+                                       bool deskew) {
+  TagsEpoch out;
+  std::map<int, std::vector<AcceptedRange>> by_tag;
+  for (const auto& r : epoch) by_tag[r.measurement.tag_id].push_back(r);
+  struct Tag {
+    int id;
+    const std::vector<AcceptedRange>* ranges;
+    double residual_norm;
+  };
+  std::vector<std::pair<Tag, uwb::Fix>> fixed;
+  for (const auto& [id, ranges] : by_tag) {
+    auto fix = epochFixOn(track(id), solver, ranges, toPlanar(ranges, sigma_), continuity, deskew);
+    if (id == primary_tag_) {
+      out.primary = fix;
+      primary_lever_ = ranges.front().measurement.tag_on_robot;
+    }
+    if (!fix) continue;
+    // The fix's residual variance per degree of freedom k = n - 2, over the median of
+    // chi-square_k / k (Wilson-Hilferty), so that the window's median is the range variance.
+    if (ranges.size() > 2) {
+      const double k = static_cast<double>(ranges.size() - 2);
+      fix_variances_.add(fix->residual_norm * fix->residual_norm /
+                         (k * std::pow(1.0 - 2.0 / (9.0 * k), 3)));
+    }
+    fixed.push_back({{id, &ranges, fix->residual_norm}, *fix});
+  }
+  // The fixes' covariances come from the std in force; the fit and its tests take them at the
+  // range variance the tags' fixes show (as uwb-multitag does), once five fixes tell it. A tag
+  // whose own ranges disagree (four or more: chi-square of n - 2 degrees of freedom beyond its
+  // 99.9 % point) is left out before the fit: the others place the robot without it.
+  std::optional<double> variance;
+  if (fix_variances_.size() >= 5) variance = std::max(fix_variances_.median(), 1e-6);
+  std::vector<Tag> tags;
+  std::vector<uwb::BodyPoint> points;
+  for (auto& [tag, fix] : fixed) {
+    const int n = static_cast<int>(tag.ranges->size());
+    if (variance && n >= 4 &&
+        fix.residual_norm * fix.residual_norm > *variance * chiSquare999(n - 2)) {
+      for (const auto& r : *tag.ranges) countRejection("tag_fix_left_out", r.measurement.anchor_id);
+      if (tag.id == primary_tag_) out.primary.reset();  // nor is it the fallback
+      continue;
+    }
+    if (variance) fix.covariance *= *variance / (sigma_ * sigma_);
+    tags.push_back(tag);
+    points.push_back(
+        {tag.ranges->front().measurement.tag_on_robot.head<2>(), fix.position, fix.covariance});
+  }
+  auto fit = uwb::fitRigidBody(points);
+  while (fit && fit->chi2 > chiSquare999(2 * static_cast<int>(points.size()) - 3)) {
+    if (points.size() == 2) {
+      ++stats_.events["tags_fix_inconsistent"];
+      fit.reset();
+      break;
+    }
+    // The tag whose leaving out fits the others best (a wrong point pulls the fit, and its
+    // residual may show on another point).
+    std::optional<uwb::RigidFit> best;
+    size_t worst = 0;
+    for (size_t k = 0; k < points.size(); ++k) {
+      std::vector<uwb::BodyPoint> others = points;
+      others.erase(others.begin() + static_cast<long>(k));
+      auto f = uwb::fitRigidBody(others);
+      if (f && (!best || f->chi2 < best->chi2)) {
+        best = std::move(f);
+        worst = k;
+      }
+    }
+    for (const auto& r : *tags[worst].ranges)
+      countRejection("tag_fix_left_out", r.measurement.anchor_id);
+    if (tags[worst].id == primary_tag_) out.primary.reset();
+    tags.erase(tags.begin() + static_cast<long>(worst));
+    points.erase(points.begin() + static_cast<long>(worst));
+    fit = std::move(best);
+  }
+  if (primary_lever_) out.primary_lever = *primary_lever_;
+  if (!fit || !primary_lever_) {
+    // The primary tag's own fix stands, unless it was left out (then nothing does): the others'
+    // ranges go unused.
+    for (const auto& [id, ranges] : by_tag)
+      if (id != primary_tag_)
+        for (const auto& r : ranges) countRejection("secondary_tag", r.measurement.anchor_id);
+    return out;
+  }
+  out.fit = fit;
+  out.tags = static_cast<int>(points.size());
+  // The primary tag's point, J Sigma J^T with J = d(t + R(theta) l)/d(t, theta) = [I, R' l].
+  const Eigen::Vector2d lever = out.primary_lever.head<2>();
+  Eigen::Matrix<double, 2, 3> j;
+  j << Eigen::Matrix2d::Identity(), rotationDerivative(fit->pose.z()) * lever;
+  uwb::Fix p;
+  p.status = uwb::FixStatus::kOk;
+  p.position = transformPoint(fit->pose, lever);
+  p.covariance = j * fit->covariance * j.transpose();
+  double sum = 0.0;
+  for (const auto& tag : tags) sum += tag.residual_norm * tag.residual_norm;
+  p.residual_norm = std::sqrt(sum);
+  out.primary = p;
+  return out;
 }
 
 FixContinuity::Checked EpochUwbEstimator::continuityChecked(
     const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
     const std::vector<uwb::PlanarRange>& planar, const FixContinuity::Solver& solve,
     const Eigen::Vector2d& offset, const std::optional<Eigen::Vector2d>& seed) {
-  if (!continuity_seeded_ && seed) continuity_.seed(initial_time_, *seed);
-  continuity_seeded_ = true;
-  auto checked = continuity_.check(epochTime(epoch), fix, planar, solve, offset);
+  return checkedOn(primary_track_, epoch, fix, planar, solve, offset, seed);
+}
+
+FixContinuity::Checked EpochUwbEstimator::checkedOn(
+    TagTrack& track, const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
+    const std::vector<uwb::PlanarRange>& planar, const FixContinuity::Solver& solve,
+    const Eigen::Vector2d& offset, const std::optional<Eigen::Vector2d>& seed) {
+  if (!track.seeded && seed) track.continuity.seed(initial_time_, *seed);
+  track.seeded = true;
+  auto checked = track.continuity.check(epochTime(epoch), fix, planar, solve, offset);
   if (checked.outcome == Continuity::kUnreachable) {
     countRejection(toString(checked.outcome));
   } else if (checked.outcome != Continuity::kAsIs) {

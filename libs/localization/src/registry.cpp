@@ -30,12 +30,12 @@ MethodInfo multilaterationMethod(const std::string& name, const std::string& des
 
 // A range filter (uwb_ekf.hpp): Filter<6> on every tag when the robot carries two or more and the
 // key tags is auto, else Filter<4> on the primary tag.
-EkfTags tagsOf(const UwbEkfParams& p) { return p.tags; }
-EkfTags tagsOf(const UwbCkfParams& p) { return p.ekf.tags; }
-EkfTags tagsOf(const UwbIahCkfParams& p) { return p.ckf.ekf.tags; }
-EkfTags tagsOf(const UwbSrukfParams& p) { return p.ekf.tags; }
-EkfTags tagsOf(const UwbShkfParams& p) { return p.ekf.tags; }
-EkfTags tagsOf(const FederatedEkfParams& p) { return p.ekf.tags; }
+RobotTags tagsOf(const UwbEkfParams& p) { return p.tags; }
+RobotTags tagsOf(const UwbCkfParams& p) { return p.ekf.tags; }
+RobotTags tagsOf(const UwbIahCkfParams& p) { return p.ckf.ekf.tags; }
+RobotTags tagsOf(const UwbSrukfParams& p) { return p.ekf.tags; }
+RobotTags tagsOf(const UwbShkfParams& p) { return p.ekf.tags; }
+RobotTags tagsOf(const FederatedEkfParams& p) { return p.ekf.tags; }
 
 template <template <int> class Filter, class Params>
 MethodInfo rangeFilterMethod(const std::string& name, const std::string& description) {

@@ -33,4 +33,53 @@ PoseEstimate tagTrackPose(double t, const Eigen::Vector2d& tag, const Eigen::Mat
   return est;
 }
 
+namespace {
+// [theta omega] over dt under white angular acceleration of density q.
+void predictHeading(Vec<2>& x, Mat<2, 2>& p, double dt, double q) {
+  Mat<2, 2> f;
+  f << 1.0, dt, 0.0, 1.0;
+  Mat<2, 2> qm;
+  qm << q * dt * dt * dt / 3.0, q * dt * dt / 2.0, q * dt * dt / 2.0, q * dt;
+  x = f * x;
+  x(0) = wrapAngle(x(0));
+  p = f * p * f.transpose() + qm;
+}
+}  // namespace
+
+bool HeadingTrack::update(double t, double heading, double variance) {
+  if (started_ && gated_in_a_row_ < max_gated_) {
+    predictHeading(x_, p_, std::max(0.0, t - t_), accel_psd_);
+    t_ = std::max(t_, t);
+    const double y = wrapAngle(heading - x_(0));
+    const double s = p_(0, 0) + variance;
+    if (y * y > 10.83 * s) {
+      ++gated_in_a_row_;
+      return false;
+    }
+    const Vec<2> k = p_.col(0) / s;
+    x_ += k * y;
+    x_(0) = wrapAngle(x_(0));
+    Mat<2, 2> ikh = Mat<2, 2>::Identity();
+    ikh.col(0) -= k;
+    p_ = ikh * p_ * ikh.transpose() + variance * k * k.transpose();
+    gated_in_a_row_ = 0;
+    return true;
+  }
+  // The start: the measurement, and an angular rate of 1 rad/s std.
+  x_ << wrapAngle(heading), 0.0;
+  p_ << variance, 0.0, 0.0, 1.0;
+  t_ = t;
+  started_ = true;
+  gated_in_a_row_ = 0;
+  return true;
+}
+
+std::optional<std::pair<double, double>> HeadingTrack::at(double t) const {
+  if (!started_) return std::nullopt;
+  Vec<2> x = x_;
+  Mat<2, 2> p = p_;
+  predictHeading(x, p, std::max(0.0, t - t_), accel_psd_);
+  return std::make_pair(x(0), p(0, 0));
+}
+
 }  // namespace uwbloc::loc::kalman

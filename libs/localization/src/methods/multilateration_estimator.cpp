@@ -7,7 +7,7 @@ namespace uwbloc::loc {
 MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
                                                    const MultilaterationParams& params,
                                                    const EstimatorContext& context)
-    : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kPrimary,
+    : EpochUwbEstimator(params.front, context, params.epoch_window, tagUse(params.tags, context),
                         params.learning),
       solver_(solver),
       params_(params) {
@@ -16,17 +16,34 @@ MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
 
 std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
-  const auto checked =
-      epochFix(solver_, epoch, toPlanar(epoch, rangeSigma()), params_.continuity, params_.deskew);
-  if (!checked) return std::nullopt;
-  const uwb::Fix& fix = *checked;
   const double t = epochTime(epoch);
-  if (last_tag_ && t > last_t_) heading_.update((fix.position - *last_tag_) / (t - last_t_));
-  last_tag_ = fix.position;
+  std::optional<uwb::Fix> fix;
+  Eigen::Vector3d lever = epoch.front().measurement.tag_on_robot;
+  if (readsEveryTag()) {
+    const TagsEpoch tags = tagsEpoch(solver_, epoch, params_.continuity, params_.deskew);
+    if (tags.fit) {
+      // The pose and heading of the fit; a later epoch of the primary tag alone keeps the heading.
+      heading_.setHeading(tags.fit->pose.z());
+      last_tag_ = tags.primary->position;
+      last_t_ = t;
+      PoseEstimate e;
+      e.t = t;
+      e.pose = tags.fit->pose;
+      e.covariance = tags.fit->covariance;
+      e.heading_valid = true;
+      return e;
+    }
+    fix = tags.primary;
+    lever = tags.primary_lever;
+  } else {
+    fix =
+        epochFix(solver_, epoch, toPlanar(epoch, rangeSigma()), params_.continuity, params_.deskew);
+  }
+  if (!fix) return std::nullopt;
+  if (last_tag_ && t > last_t_) heading_.update((fix->position - *last_tag_) / (t - last_t_));
+  last_tag_ = fix->position;
   last_t_ = t;
-
-  return kalman::tagTrackPose(t, fix.position, fix.covariance,
-                              epoch.front().measurement.tag_on_robot, heading_.heading());
+  return kalman::tagTrackPose(t, fix->position, fix->covariance, lever, heading_.heading());
 }
 
 }  // namespace uwbloc::loc

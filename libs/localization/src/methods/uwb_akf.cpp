@@ -61,7 +61,8 @@ UwbEkfParams ekfParams(const UwbAkfParams& p) {
   e.learning = p.kf.fix.learning;
   e.velocity_tau = p.kf.velocity_tau;
   e.init_residual = p.kf.fix.init_residual;
-  e.tags = p.tags;
+  e.tags = p.kf.fix.tags;
+  e.yaw_accel_psd = p.kf.fix.yaw_accel_psd;
   e.start = p.start;
   return e;
 }
@@ -125,7 +126,7 @@ template class UwbAkfRanges<6>;
 
 std::unique_ptr<Estimator> makeUwbAkf(const UwbAkfParams& params, const EstimatorContext& context) {
   if (params.mode == AkfMode::kRanges)
-    return makeRangeFilter<UwbAkfRanges>(params, params.tags, context);
+    return makeRangeFilter<UwbAkfRanges>(params, params.kf.fix.tags, context);
   return std::make_unique<UwbAkf>(params, context);
 }
 

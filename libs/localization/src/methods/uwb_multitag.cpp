@@ -6,6 +6,7 @@
 
 #include "uwbloc/uwb/pose2.hpp"
 #include "uwbloc/uwb/range_model.hpp"
+#include "uwbloc/uwb/rigid_fit.hpp"
 
 namespace uwbloc::loc {
 
@@ -77,35 +78,20 @@ std::optional<Eigen::Vector3d> closedFormStart(const std::vector<AcceptedRange>&
                                                double sigma, int* solved_tags) {
   std::map<int, std::vector<const AcceptedRange*>> by_tag;
   for (const auto& r : epoch) by_tag[r.measurement.tag_id].push_back(&r);
-  std::vector<Eigen::Vector2d> lever, point;
+  std::vector<uwb::BodyPoint> points;
   for (const auto& [tag, ranges] : by_tag) {
     if (ranges.size() < 3) continue;
     std::vector<uwb::PlanarRange> planar;
     for (const auto* r : ranges) planar.push_back({r->anchor.head<2>(), r->planar, sigma});
     const uwb::Fix fix = uwb::solveGaussNewton(planar);
     if (!fix.ok()) continue;
-    lever.push_back(ranges.front()->measurement.tag_on_robot.head<2>());
-    point.push_back(fix.position);
+    points.push_back({ranges.front()->measurement.tag_on_robot.head<2>(), fix.position});
   }
-  *solved_tags = static_cast<int>(point.size());
-  if (point.empty()) return std::nullopt;
-  if (point.size() == 1) return Eigen::Vector3d(point[0].x(), point[0].y(), 0.0);
-  Eigen::Vector2d lc = Eigen::Vector2d::Zero(), pc = Eigen::Vector2d::Zero();
-  for (size_t i = 0; i < point.size(); ++i) {
-    lc += lever[i];
-    pc += point[i];
-  }
-  lc /= static_cast<double>(point.size());
-  pc /= static_cast<double>(point.size());
-  double sin_sum = 0.0, cos_sum = 0.0;
-  for (size_t i = 0; i < point.size(); ++i) {
-    const Eigen::Vector2d a = lever[i] - lc, b = point[i] - pc;
-    cos_sum += a.dot(b);
-    sin_sum += a.x() * b.y() - a.y() * b.x();
-  }
-  const double theta = std::atan2(sin_sum, cos_sum);
-  const Eigen::Vector2d p = pc - rotation(theta) * lc;
-  return Eigen::Vector3d(p.x(), p.y(), theta);
+  *solved_tags = static_cast<int>(points.size());
+  if (points.empty()) return std::nullopt;
+  if (points.size() == 1)
+    return Eigen::Vector3d(points[0].measured.x(), points[0].measured.y(), 0.0);
+  return uwb::procrustes2d(points, std::vector<double>(points.size(), 1.0));
 }
 
 }  // namespace
@@ -157,21 +143,13 @@ void UwbMultitag::noteVariance(const MultitagFix& fix, size_t ranges) {
   if (ranges <= 3) return;
   const double v = fix.rms_residual * fix.rms_residual * static_cast<double>(ranges) /
                    static_cast<double>(ranges - 3);
-  constexpr size_t kWindow = 201;
-  if (variances_.size() < kWindow)
-    variances_.push_back(v);
-  else
-    variances_[variance_count_ % kWindow] = v;
-  ++variance_count_;
+  variances_.add(v);
 }
 
 double UwbMultitag::rangeVariance() {
   const double sigma = rangeSigma();
   if (variances_.size() < 5) return sigma * sigma;
-  scratch_.assign(variances_.begin(), variances_.end());  // reuses its storage
-  const auto mid = scratch_.begin() + static_cast<long>(scratch_.size() / 2);
-  std::nth_element(scratch_.begin(), mid, scratch_.end());
-  return std::max(*mid, 1e-6);
+  return std::max(variances_.median(), 1e-6);
 }
 
 bool UwbMultitag::filter(double t, const MultitagFix& fix, const Eigen::Matrix3d& r) {

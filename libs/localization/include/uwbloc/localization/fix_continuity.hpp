@@ -63,6 +63,9 @@ class FixContinuity {
   /// Sets every_range.
   void checkEveryRange();
 
+  /// A track with the same parameters (as learnt so far) and no history: another tag's.
+  FixContinuity fresh() const { return FixContinuity(params_); }
+
   /// The track's white acceleration density, as learnt from the data.
   void setAccelPsd(double q);
 

@@ -14,6 +14,7 @@
 #include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/multilateration.hpp"
+#include "uwbloc/uwb/rigid_fit.hpp"
 
 namespace uwbloc::nlos {
 class Model;
@@ -95,6 +96,16 @@ enum class TagUse { kPrimary, kAll };
 
 /// The primary tag of a context: the lowest listed robot tag, else 0.
 int primaryTag(const EstimatorContext& context);
+
+/// The `tags` key of the UWB methods: auto reads every tag when the robot carries two or more,
+/// primary the primary tag's ranges only.
+enum class RobotTags { kAuto, kPrimary };
+constexpr std::array<EnumName<RobotTags>, 2> enumNames(RobotTags) {
+  return {{{RobotTags::kAuto, "auto"}, {RobotTags::kPrimary, "primary"}}};
+}
+
+/// What `tags` means for `context`: kAll when auto and the robot lists two tags or more.
+TagUse tagUse(RobotTags tags, const EstimatorContext& context);
 
 /// A range that passed the front end.
 struct AcceptedRange {
@@ -206,6 +217,13 @@ inline constexpr const char* kContinuityHelp =
     "that fits every range but one (a wrong range among three can fit the mirror image "
     "exactly); 0: every fix as it is";
 
+/// The `tags` key of the same methods.
+inline constexpr const char* kEpochTagsHelp =
+    "auto: every tag when the robot carries two or more: each tag with three ranges or more is "
+    "multilaterated on its own and the lever arms are fitted to those points (the pose and "
+    "heading per epoch; a tag that disagrees with the others is left out), and an epoch where "
+    "fewer than two tags fix takes the primary tag's ranges; primary: the primary tag's only";
+
 /// The `deskew` key of the same methods.
 inline constexpr const char* kDeskewHelp =
     "ranges taken one anchor at a time are moved to the epoch's mean time along the continuity "
@@ -238,6 +256,19 @@ class EpochBuffer {
   size_t gaps_seen_ = 0;
   double last_t_ = 0.0;
   std::vector<int> anchors_seen_;
+};
+
+/// An epoch of several tags' ranges (EpochUwbEstimator::tagsEpoch).
+struct TagsEpoch {
+  /// The robot's pose (x, y, heading) and its covariance, when two tags or more fixed and agree.
+  std::optional<uwb::RigidFit> fit;
+  /// The primary tag's point: at the fitted pose (its covariance through the lever arm, the
+  /// root sum square of the fitted tags' residual norms), else from its own ranges; none when
+  /// neither.
+  std::optional<uwb::Fix> primary;
+  /// The primary tag's lever arm (once one of its ranges has been seen: the fit needs it).
+  Eigen::Vector3d primary_lever = Eigen::Vector3d::Zero();
+  int tags = 0;  ///< tags fitted
 };
 
 /// Base of the per-epoch UWB methods: accepted ranges are grouped into epochs and each closed
@@ -279,6 +310,22 @@ class EpochUwbEstimator : public UwbEstimator {
                                    const std::vector<AcceptedRange>& epoch,
                                    std::vector<uwb::PlanarRange> planar, bool continuity,
                                    bool deskew);
+  /// With every tag read (TagUse::kAll): each tag of the epoch multilaterated on its own as
+  /// epochFix does the primary tag's, against its own continuity track (deskewed along it with
+  /// `deskew`), and the lever arms of two tags or more fitted to those points
+  /// (uwb::fitRigidBody), each point's covariance taken at the range variance the tags' fixes
+  /// show (the median of their residual variance over the last 201, once there are 5). A tag of
+  /// four ranges or more whose own residual fails its chi-square test (n - 2 degrees of freedom,
+  /// 99.9 %) is left out first (its ranges counted: tag_fix_left_out). Then, while the
+  /// fit's chi-square (2n - 3 degrees of freedom) is beyond its 99.9 % point, the tag whose leaving
+  /// out fits the others best is left out (counted the same) as long as two
+  /// remain; two that disagree give no fit (event tags_fix_inconsistent). Without a fit the primary
+  /// tag's own fix stands (unless it was left out), and the other tags' ranges are counted as
+  /// unused (secondary_tag).
+  TagsEpoch tagsEpoch(MultilaterationSolver solver, const std::vector<AcceptedRange>& epoch,
+                      bool continuity, bool deskew);
+  /// Whether the method reads every tag (tagUse of its `tags` key).
+  bool readsEveryTag() const { return tags_ == TagUse::kAll; }
   /// `fix` of the epoch's tag from `planar`, checked for continuity (FixContinuity::check with
   /// `solve` and `offset`; the check starts from `seed`, the start pose's point, when the run has
   /// one). Its outcome and each range it leaves out are counted; no fix when it refuses the epoch.
@@ -291,15 +338,38 @@ class EpochUwbEstimator : public UwbEstimator {
   /// The start pose, when the run has one.
   const std::optional<Eigen::Vector3d>& initialPose() const { return initial_pose_; }
   /// The continuity check judges every range against its track (FixContinuityParams::every_range).
-  void checkEveryRange() { continuity_.checkEveryRange(); }
+  void checkEveryRange() { primary_track_.continuity.checkEveryRange(); }
 
  private:
   /// One event after the learning start.
   std::optional<PoseEstimate> step(const Event& event);
 
+  /// A tag's continuity track (fix_continuity.hpp), seeded from the start pose once.
+  struct TagTrack {
+    FixContinuity continuity;
+    bool seeded = false;
+  };
+  /// The track of `tag`: the primary tag's, or another's, made on first use (fresh()).
+  TagTrack& track(int tag);
+  /// epochFix on `track`.
+  std::optional<uwb::Fix> epochFixOn(TagTrack& track, MultilaterationSolver solver,
+                                     const std::vector<AcceptedRange>& epoch,
+                                     std::vector<uwb::PlanarRange> planar, bool continuity,
+                                     bool deskew);
+  /// continuityChecked on `track`.
+  FixContinuity::Checked checkedOn(TagTrack& track, const std::vector<AcceptedRange>& epoch,
+                                   const uwb::Fix& fix, const std::vector<uwb::PlanarRange>& planar,
+                                   const FixContinuity::Solver& solve,
+                                   const Eigen::Vector2d& offset,
+                                   const std::optional<Eigen::Vector2d>& seed);
+
+  TagUse tags_;
+  int primary_tag_;
+  std::optional<Eigen::Vector3d> primary_lever_;  ///< once one of its ranges has been seen
   EpochBuffer epochs_;
-  FixContinuity continuity_;
-  bool continuity_seeded_ = false;
+  TagTrack primary_track_;                ///< the primary tag's (uwb-multitag: the robot's)
+  std::map<int, TagTrack> other_tracks_;  ///< the other tags', with every tag read
+  WindowMedian fix_variances_{201};       ///< tagsEpoch: recent tag fixes' residual variance
   std::optional<Eigen::Vector3d> initial_pose_;
   double initial_time_ = 0.0;
   bool sigma_auto_;

@@ -42,6 +42,33 @@ inline double medianOf(std::vector<double> v) {
   return *m;
 }
 
+/// The median of the last `window` values added: a ring buffer, whose copy for the median reuses
+/// its storage.
+class WindowMedian {
+ public:
+  explicit WindowMedian(size_t window) : window_(window) {}
+  void add(double v) {
+    if (values_.size() < window_)
+      values_.push_back(v);
+    else
+      values_[count_ % window_] = v;
+    ++count_;
+  }
+  size_t size() const { return values_.size(); }
+  double median() {
+    scratch_.assign(values_.begin(), values_.end());
+    if (scratch_.empty()) return 0.0;
+    const auto m = scratch_.begin() + static_cast<std::ptrdiff_t>(scratch_.size() / 2);
+    std::nth_element(scratch_.begin(), m, scratch_.end());
+    return *m;
+  }
+
+ private:
+  size_t window_;
+  size_t count_ = 0;
+  std::vector<double> values_, scratch_;
+};
+
 /// bias=auto's test on an anchor's offsets (range minus predicted distance): a bias stands out
 /// when the median offset of each half of the span, in time, exceeds the offsets' robust spread
 /// (a bias below the noise costs less left alone than estimated) and the two agree within it

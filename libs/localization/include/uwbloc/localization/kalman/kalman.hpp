@@ -16,6 +16,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/LU>
+#include <optional>
+#include <utility>
 
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/uwb/gates.hpp"
@@ -79,5 +81,28 @@ void initialiseFromFix(const uwb::Fix& fix, Vec<4>& x, Mat<4, 4>& p, double velo
 /// pi^2), the covariance the tag position's.
 PoseEstimate tagTrackPose(double t, const Eigen::Vector2d& tag, const Eigen::Matrix2d& tag_cov,
                           const Eigen::Vector3d& tag_on_robot, double heading);
+
+/// A heading measured directly, each epoch (several tags' rigid fits): the state [theta omega]
+/// under white angular acceleration of density `accel_psd` [rad^2/s^3]. Each measurement is
+/// gated (1 dof, 99.9 %); after `max_gated` refused in a row the track restarts on the next.
+class HeadingTrack {
+ public:
+  explicit HeadingTrack(double accel_psd = 1.0, int max_gated = 5)
+      : accel_psd_(accel_psd), max_gated_(max_gated) {}
+  /// Predicts to t and updates with `heading` of variance `variance`; false when gated.
+  bool update(double t, double heading, double variance);
+  /// The heading and its variance predicted to t; nothing before the first measurement.
+  std::optional<std::pair<double, double>> at(double t) const;
+  void reset() { started_ = false; }
+
+ private:
+  double accel_psd_;
+  int max_gated_;
+  bool started_ = false;
+  int gated_in_a_row_ = 0;
+  double t_ = 0.0;
+  Vec<2> x_ = Vec<2>::Zero();
+  Mat<2, 2> p_ = Mat<2, 2>::Identity();
+};
 
 }  // namespace uwbloc::loc::kalman

@@ -8,12 +8,17 @@
 #include <Eigen/Core>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
 
 namespace uwbloc::loc {
 
 struct FixFilterParams {
   RangeFrontEndParams front;
+  /// Every tag (the fix from tagsEpoch, and the heading from the fits) or the primary tag's only;
+  /// uwb-akf:mode=ranges reads it as uwb-ekf does.
+  RobotTags tags = RobotTags::kAuto;
+  double yaw_accel_psd = 1.0;  ///< two tags or more: the heading track's [rad^2/s^3]
   AutoDouble epoch_window;  ///< ranges within this span form one epoch [s]; auto: the data's rate
   /// Multilateration for the measurement: ls (the greenhouse and mobile-node papers), gn or chan.
   MultilaterationSolver solver = MultilaterationSolver::kGaussNewton;
@@ -27,6 +32,15 @@ struct FixFilterParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
+    v("tags", tags,
+      "auto: every tag when the robot carries two or more: each tag with three ranges or more is "
+      "multilaterated on its own and the lever arms are fitted to those points (a tag that "
+      "disagrees with the others is left out); the filter tracks the primary tag's point from "
+      "the fit and the heading comes from the fits (yaw_accel_psd); an epoch where fewer than "
+      "two tags fix takes the primary tag's ranges; primary: the primary tag's only "
+      "(uwb-akf:mode=ranges: as uwb-ekf's tags)");
+    v("yaw_accel_psd", yaw_accel_psd,
+      "two tags or more: the heading track's white angular acceleration density [rad^2/s^3]");
     v("window", epoch_window,
       "epoch window [s], or auto (one round of ranges from the data's rate)");
     v("solver", solver, "multilateration solver for the measurement: ls, gn, chan");
@@ -44,11 +58,15 @@ class FixFilter : public EpochUwbEstimator {
   /// `q`: the subclass's q key, when it has one.
   FixFilter(const FixFilterParams& params, const EstimatorContext& context,
             const AutoDouble* q = nullptr)
-      : EpochUwbEstimator(params.front, context, params.epoch_window, TagUse::kPrimary,
+      : EpochUwbEstimator(params.front, context, params.epoch_window, tagUse(params.tags, context),
                           params.learning, q),
-        fix_(params) {}
+        fix_(params),
+        heading_track_(params.yaw_accel_psd) {}
   std::optional<PoseEstimate> onEpoch(const std::vector<AcceptedRange>& epoch) final;
-  void reset() override { initialised_ = false; }
+  void reset() override {
+    initialised_ = false;
+    heading_track_.reset();
+  }
 
   /// Starts the state from a fix.
   virtual void start(const uwb::Fix& fix) = 0;
@@ -60,7 +78,16 @@ class FixFilter : public EpochUwbEstimator {
   const FixFilterParams& fixParams() const { return fix_; }
 
  private:
+  /// The epoch's fix of the primary tag: from tagsEpoch when it fits two tags or more (its heading
+  /// into the heading track), else from the primary tag's ranges. `lever`: that tag's lever arm.
+  std::optional<uwb::Fix> primaryFix(const std::vector<AcceptedRange>& epoch, double t,
+                                     Eigen::Vector3d* lever);
+  /// The estimate with the heading track's heading, while its std is within 30 degrees: the
+  /// robot's position moved to it about the tag's point, heading_valid.
+  void useTrackedHeading(PoseEstimate& e, const Eigen::Vector3d& lever) const;
+
   FixFilterParams fix_;
+  kalman::HeadingTrack heading_track_;
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
   double t_ = 0.0;

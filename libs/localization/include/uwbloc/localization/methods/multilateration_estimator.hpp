@@ -11,6 +11,7 @@ namespace uwbloc::loc {
 
 struct MultilaterationParams {
   RangeFrontEndParams front;  ///< range checks and gates
+  RobotTags tags = RobotTags::kAuto;  ///< every tag (tagsEpoch) or the primary tag's only
   AutoDouble epoch_window;    ///< ranges within this span form one epoch [s]; auto: the data's rate
   bool continuity = true;     ///< check each fix against the tag's reach (fix_continuity.hpp)
   bool deskew = true;         ///< ranges moved to the epoch's time along the track (deskewRanges)
@@ -19,6 +20,7 @@ struct MultilaterationParams {
   template <class V>
   void visit(V&& v) {
     front.visit(v);
+    v("tags", tags, kEpochTagsHelp);
     v("window", epoch_window,
       "epoch window [s], or auto (one round of ranges from the data's rate)");
     v("continuity", continuity, kContinuityHelp);

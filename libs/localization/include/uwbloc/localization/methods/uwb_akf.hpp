@@ -70,7 +70,6 @@ struct UwbAkfParams {
   double r_floor = 0.01;     ///< smallest std of R̂'s eigenvalues [m] (the positivity guard)
   AkfMeans means = AkfMeans::kAuto;
   AkfRFrom r_from = AkfRFrom::kAuto;
-  EkfTags tags = EkfTags::kAuto;          ///< mode=ranges: the tags read (uwb-ekf's key)
   EkfStart start = EkfStart::kStartPose;  ///< mode=ranges: where it starts (uwb-ekf's key)
   /// Whether R̂ comes from the post-fit residual, `auto` resolved for the mode.
   bool rFromResidual() const {
@@ -117,9 +116,6 @@ struct UwbAkfParams {
     v("start", start,
       "mode=ranges: start at the start pose (start) or at the first multilateration fix (fix); "
       "on the fix it always starts from the fix");
-    v("tags", tags,
-      "mode=ranges: auto: every tag on the robot when it carries two or more (the pose and "
-      "heading from the lever arms), else the primary tag; primary: the primary tag's only");
     v("means", means,
       "noise means estimated besides the covariances: qr (q-hat and r-hat, eq. 16), q, r, none, "
       "or auto: none on the fix (neither can be told from the state there), r (each anchor's "

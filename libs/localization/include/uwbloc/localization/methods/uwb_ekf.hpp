@@ -55,15 +55,9 @@ constexpr std::array<EnumName<EkfStart>, 2> enumNames(EkfStart) {
   return {{{EkfStart::kStartPose, "start"}, {EkfStart::kFix, "fix"}}};
 }
 
-/// Which of the robot's tags the range filters read.
-enum class EkfTags { kAuto, kPrimary };
-constexpr std::array<EnumName<EkfTags>, 2> enumNames(EkfTags) {
-  return {{{EkfTags::kAuto, "auto"}, {EkfTags::kPrimary, "primary"}}};
-}
-
 struct UwbEkfParams {
   RangeFrontEndParams front;
-  EkfTags tags = EkfTags::kAuto;
+  RobotTags tags = RobotTags::kAuto;
   EkfStart start = EkfStart::kStartPose;
   double start_sigma = 0.5;    ///< std of the start pose's position [m]
   AutoDouble epoch_window;     ///< epoch window of the initial fix [s]; auto: the data's rate
@@ -261,10 +255,9 @@ using UwbEkfMultitag = UwbEkfT<6>;
 /// A range filter's estimator for `context`: Filter<6> on every tag when the robot carries two
 /// tags or more and `tags` is auto, else Filter<4> on the primary tag.
 template <template <int> class Filter, class Params>
-std::unique_ptr<Estimator> makeRangeFilter(const Params& params, EkfTags tags,
+std::unique_ptr<Estimator> makeRangeFilter(const Params& params, RobotTags tags,
                                            const EstimatorContext& context) {
-  if (tags == EkfTags::kAuto && context.robot_tags.size() >= 2)
-    return std::make_unique<Filter<6>>(params, context);
+  if (tagUse(tags, context) == TagUse::kAll) return std::make_unique<Filter<6>>(params, context);
   return std::make_unique<Filter<4>>(params, context);
 }
 

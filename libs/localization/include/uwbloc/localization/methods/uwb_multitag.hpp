@@ -106,9 +106,7 @@ class UwbMultitag : public EpochUwbEstimator {
   std::optional<Eigen::Vector3d> last_;
   double last_t_ = -1e300;
   bool heading_seen_ = false;
-  std::vector<double> variances_;  ///< recent epochs' residual variance (ring buffer)
-  std::vector<double> scratch_;    ///< their copy for the median
-  size_t variance_count_ = 0;
+  WindowMedian variances_{201};  ///< recent epochs' residual variance
   bool filtering_ = false;
   Eigen::Matrix<double, 6, 1> x_ = Eigen::Matrix<double, 6, 1>::Zero();
   Eigen::Matrix<double, 6, 6> p_ = Eigen::Matrix<double, 6, 6>::Identity();
