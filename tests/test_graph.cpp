@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 
 #include "graph/cost_functions.hpp"
@@ -14,6 +15,7 @@
 #include "uwbloc/localization/events.hpp"
 #include "uwbloc/localization/graph/range_graph.hpp"
 #include "uwbloc/localization/range_noise.hpp"
+#include "uwbloc/uwb/range_model.hpp"
 
 using namespace uwbloc;
 using namespace uwbloc::loc::graph;
@@ -515,4 +517,41 @@ TEST(PoseGraph, MrptCircleGraph) {
   EXPECT_LT(after, before);
   // The gap to the ground truth is the edges' own noise: the ground truth fits them worse.
   EXPECT_LT(solution.final_cost, truth_cost);
+}
+
+// Two tags on one robot that range unlike each other (0.05 m and 0.20 m of noise), the poses
+// pinned by their priors: each tag's residual spread is its own noise (within 15 %), where one
+// std over both would be neither's.
+TEST(RangeGraph, EachTagsSpreadIsItsOwn) {
+  const std::vector<uwb::Anchor> anchors = {
+      {1, {0, 0, 2}}, {2, {10, 0, 2}}, {3, {10, 10, 2}}, {4, {0, 10, 2}}};
+  const std::vector<std::pair<int, Eigen::Vector3d>> tags = {{0, {0.2, 0.1, 1.0}},
+                                                             {5, {-0.2, 0.1, 1.0}}};
+  const std::map<int, double> sigma = {{0, 0.05}, {5, 0.20}};
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> g(0, 1);
+  RangeGraph gr;
+  gr.setAnchors(anchors);
+  for (int k = 0; k < 400; ++k) {
+    const Eigen::Vector3d pose(2.0 + 6.0 * k / 400.0, 3.0 + 2.0 * std::sin(k * 0.05), 0.01 * k);
+    const int p = gr.addPose(pose);
+    gr.addPosePrior(p, pose, {1e-4, 1e-4, 1e-4});
+    for (const auto& [id, lever] : tags)
+      for (const auto& a : anchors)
+        gr.addRange(p, a.id, uwb::predictRange(pose, lever, a.position) + sigma.at(id) * g(rng),
+                    lever, 1.0, id);
+  }
+  RangeGraphParams params;
+  params.loss = RobustLoss::kNone;
+  params.range_sigma = 0.1;
+  gr.build(params);
+  ASSERT_TRUE(gr.solve().usable);
+  const auto spread = gr.tagSigmas();
+  ASSERT_EQ(spread.size(), 2u);
+  for (const auto& [id, s] : spread) {
+    std::printf("[ GRAPH    ] tag %d: %ld ranges, robust std %.4f m (true %.2f)\n", id, s.first,
+                s.second, sigma.at(id));
+    EXPECT_EQ(s.first, 1600);
+    EXPECT_NEAR(s.second, sigma.at(id), 0.15 * sigma.at(id)) << id;
+  }
 }

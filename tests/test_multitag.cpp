@@ -363,6 +363,38 @@ TEST(EpochTags, ATagThatDisagreesWithTheOthersIsLeftOut) {
   for (const auto& e : two.trajectory) ASSERT_TRUE(e.pose.allFinite()) << e.t;
 }
 
+// Two tags that range unlike each other: tag 2's ranges get 0.2 m more noise. One std learnt over
+// both is mostly tag 0's, and uwb-pf's NLOS test rejects tag 2's good ranges at it; with a std per
+// tag (tag_sigma=1, the default) tag 2 takes its own, learnt at the start.
+TEST(UwbPfTags, ATagThatRangesWorseGetsItsOwnStd) {
+  data::Dataset ds = twoTagRoom();
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> g(0.0, 0.2);
+  for (auto& e : ds.events)
+    if (auto* r = std::get_if<uwb::Range>(&e); r && r->tag_id == 2) r->range += g(rng);
+  const auto own = eval::runMethod(ds, "uwb-pf", 1);
+  const auto one = eval::runMethod(ds, "uwb-pf:tag_sigma=0", 1);
+  const auto own_m = eval::evaluateMethod(ds, "uwb-pf", 1, 1).metrics;
+  const auto one_m = eval::evaluateMethod(ds, "uwb-pf:tag_sigma=0", 1, 1).metrics;
+  auto rejected = [](const eval::RunResult& run) {
+    const auto it = run.statistics.rejected.find("nlos_pose");
+    return it == run.statistics.rejected.end() ? 0L : it->second;
+  };
+  const auto& tags = own.statistics.estimated_tag_noise;
+  ASSERT_EQ(tags.size(), 2u);
+  std::printf(
+      "[ TAGS     ] uwb-pf, tag 2 with 0.2 m more noise: learnt std tag 0 %.3f, tag 2 %.3f m; "
+      "rmse_2d %.4f m, %ld ranges failed the NLOS test (one std for both: %.4f m, %ld)\n",
+      tags.at(0).sigma, tags.at(2).sigma, own_m.rmse_2d, rejected(own), one_m.rmse_2d,
+      rejected(one));
+  EXPECT_GT(tags.at(2).sigma, 2.5 * tags.at(0).sigma);
+  EXPECT_EQ(own.statistics.events.at("tag_sigma_widened"), 1);
+  EXPECT_EQ(one.statistics.events.count("tag_sigma_widened"), 0u);
+  EXPECT_LT(rejected(own), rejected(one) / 2);
+  EXPECT_LT(own_m.rmse_2d, one_m.rmse_2d);
+  for (const auto& e : own.trajectory) ASSERT_TRUE(e.pose.allFinite()) << e.t;
+}
+
 // The point filters after the heading has gone unobserved: tag 2's ranges are dropped for 30 s
 // while the robot drives and turns, so only tag 0's remain and the heading's std grows past
 // what 2n points can span (sqrt(6) sigma beyond +-pi: they wrap round the circle and say

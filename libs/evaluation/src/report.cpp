@@ -143,6 +143,9 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
         e["estimated_noise"][std::to_string(anchor)] = {
             {"bias", number(n.bias)}, {"sigma", number(n.sigma)}, {"ranges", n.ranges}};
       if (m.estimated_range_sigma) e["estimated_range_sigma"] = number(*m.estimated_range_sigma);
+      for (const auto& [tag, n] : m.estimated_tag_noise)
+        e["estimated_tag_sigma"][std::to_string(tag)] = {{"sigma", number(n.sigma)},
+                                                         {"ranges", n.ranges}};
       if (m.estimated_range_scale) e["estimated_range_scale"] = number(*m.estimated_range_scale);
       if (const auto& x = m.estimated_range_mixture)
         e["estimated_range_mixture"] = {{"nlos_fraction", number(x->nlos_fraction)},
@@ -308,6 +311,15 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
     if (m.contains("estimated_range_sigma")) {
       std::snprintf(buf, sizeof buf, " model sigma %.3f m;", num(m, "estimated_range_sigma"));
       out << buf;
+    }
+    if (m.contains("estimated_tag_sigma")) {
+      out << " per tag";
+      for (const auto& [tag, x] : m["estimated_tag_sigma"].items()) {
+        std::snprintf(buf, sizeof buf, " %s{sigma %.3f, n %ld}", tag.c_str(), num(x, "sigma"),
+                      x["ranges"].get<long>());
+        out << buf;
+      }
+      out << ";";
     }
     if (m.contains("estimated_range_scale")) {
       std::snprintf(buf, sizeof buf, " range scale %+.4f (ranges read %.2f %% %s);",

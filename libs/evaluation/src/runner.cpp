@@ -281,6 +281,7 @@ MethodSummary summarise(const data::Dataset& dataset, const std::string& spec,
       s.events = run.statistics.events;
       s.estimated_noise = run.statistics.estimated_noise;
       s.estimated_range_sigma = run.statistics.estimated_range_sigma;
+      s.estimated_tag_noise = run.statistics.estimated_tag_noise;
       s.estimated_range_scale = run.statistics.estimated_range_scale;
       s.estimated_range_mixture = run.statistics.estimated_range_mixture;
       s.estimated_accel_psd = run.statistics.estimated_accel_psd;

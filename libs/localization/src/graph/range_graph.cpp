@@ -50,10 +50,10 @@ void RangeGraph::addRelativePose(int from, int to, const Eigen::Vector3d& delta,
 }
 
 void RangeGraph::addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag,
-                          double variance_scale) {
+                          double variance_scale, int tag_id) {
   for (size_t i = 0; i < anchors_.size(); ++i)
     if (anchors_[i].id == anchor_id) {
-      ranges_.push_back({pose, static_cast<int>(i), range, tag, variance_scale});
+      ranges_.push_back({pose, static_cast<int>(i), range, tag, variance_scale, tag_id});
       return;
     }
   throw std::invalid_argument("RangeGraph: unknown anchor " + std::to_string(anchor_id));
@@ -422,6 +422,18 @@ std::vector<AnchorResiduals> RangeGraph::anchorResiduals() const {
     for (auto& e : centred[i]) e = std::abs(e - m);
     a.robust_sigma = 1.4826 * medianOf(std::move(centred[i]));
     out.push_back(a);
+  }
+  return out;
+}
+
+std::map<int, std::pair<long, double>> RangeGraph::tagSigmas() const {
+  std::map<int, std::vector<double>> residuals;
+  for (const auto& r : ranges_) residuals[r.tag_id].push_back(rangeResidual(r, nullptr));
+  std::map<int, std::pair<long, double>> out;
+  for (auto& [tag, e] : residuals) {
+    const double m = medianOf(e);
+    for (auto& x : e) x = std::abs(x - m);
+    out[tag] = {static_cast<long>(e.size()), 1.4826 * medianOf(e)};
   }
   return out;
 }

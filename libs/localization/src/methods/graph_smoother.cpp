@@ -112,7 +112,7 @@ std::optional<PoseEstimate> GraphSmoother::solveWindow() {
     }
     for (const auto& r : w.ranges)
       g.addRange(v, r.measurement.anchor_id, r.measurement.range, r.measurement.tag_on_robot,
-                 r.variance_scale);
+                 r.variance_scale, r.measurement.tag_id);
   }
   graph::RangeGraphParams p = graphParams();
   p.max_iterations = std::min(p.max_iterations, 20);
@@ -430,7 +430,7 @@ void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& t
         constantVelocity() ? Eigen::Vector3d(0.0, 0.0, r.measurement.tag_on_robot.z())
                            : r.measurement.tag_on_robot;
     g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range, tag,
-               r.variance_scale);
+               r.variance_scale, r.measurement.tag_id);
   }
 }
 
@@ -645,6 +645,10 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       stats_.estimated_noise[a.anchor_id] = {p.estimate_bias ? a.bias : a.median, a.robust_sigma,
                                              a.ranges};
   if (p.estimate_scale) stats_.estimated_range_scale = g.scale();
+  // Several tags: each one's spread, as tags on one robot may range unlike each other (a tag
+  // behind the robot's body, another make).
+  if (const auto tags = g.tagSigmas(); tags.size() >= 2)
+    for (const auto& [tag, s] : tags) stats_.estimated_tag_noise[tag] = {0.0, s.second, s.first};
   if (auto_sigma) {
     const auto residuals = g.rangeResiduals();
     if (auto fit = fitRangeMixture(residuals)) {

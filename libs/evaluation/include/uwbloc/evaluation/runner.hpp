@@ -85,6 +85,7 @@ struct MethodSummary {
   std::map<std::string, long> events;                 ///< non-rejection events by name (first run)
   std::map<int, loc::NoiseEstimate> estimated_noise;  ///< per anchor id (first run)
   std::optional<double> estimated_range_sigma;        ///< the model's range std (first run)
+  std::map<int, loc::NoiseEstimate> estimated_tag_noise;  ///< per tag id (first run)
   std::optional<double> estimated_range_scale;        ///< the model's range scale (first run)
   std::optional<loc::RangeMixture> estimated_range_mixture;  ///< the range likelihood in force
   std::optional<double> estimated_accel_psd;  ///< the learnt motion q [m^2/s^3] (first run)

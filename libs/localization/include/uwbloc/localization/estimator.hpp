@@ -71,6 +71,9 @@ struct EstimatorStatistics {
   std::map<std::string, long> events;
   /// Per anchor id: the bias and noise the method estimated (empty: it estimates none).
   std::map<int, NoiseEstimate> estimated_noise;
+  /// Per tag id, with two tags or more: the robust std of that tag's range residuals (sigma,
+  /// ranges; bias 0), as the graph's learning finds it.
+  std::map<int, NoiseEstimate> estimated_tag_noise;
   /// The range std the method ended with, when it estimates one (`sigma=auto`).
   std::optional<double> estimated_range_sigma;
   /// The range scale learnt from the data, when one stood out: z = (1 + s) d + bias.

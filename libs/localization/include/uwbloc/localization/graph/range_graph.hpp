@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -92,8 +93,9 @@ class RangeGraph {
   /// files store it; throws std::invalid_argument when it is not positive definite.
   void addRelativePose(int from, int to, const Eigen::Vector3d& delta,
                        const Eigen::Matrix3d& information);
+  /// `tag_id`: the tag the range came from (tagSigmas groups by it).
   void addRange(int pose, int anchor_id, double range, const Eigen::Vector3d& tag,
-                double variance_scale = 1.0);
+                double variance_scale = 1.0, int tag_id = 0);
   /// A constant-velocity edge through poses a, b, c, dt1 and dt2 [s] apart (positive): the
   /// motion prior of a graph without odometry (q: the parameters' accel_psd).
   void addConstantVelocity(int a, int b, int c, double dt1, double dt2);
@@ -141,6 +143,9 @@ class RangeGraph {
   std::vector<std::pair<int, double>> rangeResiduals() const;
   /// After solve(): each anchor's range residual statistics (ranges in the order added).
   std::vector<AnchorResiduals> anchorResiduals() const;
+  /// After solve(): per tag id, its ranges' count and the robust std (1.4826 MAD) of their
+  /// residuals z - predicted - bias about their median [m].
+  std::map<int, std::pair<long, double>> tagSigmas() const;
   /// After solve(): the residuals' slope against distance (see ScaleEvidence).
   ScaleEvidence scaleEvidence() const;
   /// The values of every vertex (poses, anchors, biases, scale, landmarks), to go back to after
@@ -177,6 +182,7 @@ class RangeGraph {
     double range;
     Eigen::Vector3d tag;
     double variance_scale;  ///< over range_sigma^2 (an NLOS model's doubt)
+    int tag_id;
   };
   struct Odometry {
     int from, to;

@@ -145,6 +145,9 @@ struct UwbPartParams {
   /// sigma=auto: the range likelihood becomes the LOS / NLOS mixture learnt at the start, when
   /// it explains the residuals better than one Gaussian (range_mixture.hpp).
   bool mixture = true;
+  /// Several tags and a learning start: a tag whose ranges are clearly wider than all the tags'
+  /// together gets its own std (learnTagScales).
+  bool tag_sigma = true;
   /// In a filter with LiDAR and sigma=auto: the range mixture is learnt at the LiDAR's pose
   /// (lidar-mcl with range_model=1 over the first `calib_lidar` seconds), not from the
   /// smoothing's residuals, whose path the NLOS ranges bend; its LOS std is then taken as
@@ -178,6 +181,10 @@ struct UwbPartParams {
       "sigma=auto: take the LOS / NLOS range-error mixture (Gaussian + exponential excess) "
       "learnt at the start as the range likelihood, when it explains the residuals better than "
       "one Gaussian (BIC); the NLOS test then flags only ranges that neither part explains");
+    v("tag_sigma", tag_sigma,
+      "several tags, with a learning start: a tag whose ranges the learning finds wider than all "
+      "the tags' together by more than 1.25 times takes the learnt std times that ratio (one "
+      "std learnt over every tag is the tags' that range most); 0: one std for every tag");
     v("lost_ranges", lost_ranges,
       "with LiDAR, under the mixture learnt at its pose: lost (relocalise over the map) when "
       "more than half of the last this many ranges fail the NLOS test (0: never)");
@@ -389,6 +396,15 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   void weightRange(ParticleFilter& pf, const AcceptedRange& r, const ParticleEstimate& e,
                    EstimatorStatistics& stats);
   bool suspended() const;
+  /// Several tags: the learnt std of each tag's ranges (estimated_tag_noise) against all the
+  /// tags' together; a tag wider by more than 1.25 times gets its ratio (tag_scale_; event
+  /// tag_sigma_widened).
+  void learnTagScales(const EstimatorStatistics& learnt, EstimatorStatistics& stats);
+  /// A tag's std over the learnt one (tag_scale_), 1 for the others.
+  double tagScale(int tag) const {
+    const auto it = tag_scale_.find(tag);
+    return it == tag_scale_.end() ? 1.0 : it->second;
+  }
 
   UwbPartParams params_;
   RangeFrontEnd front_;
@@ -403,6 +419,9 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   std::optional<RangeMixture> mixture_;  ///< the learnt range likelihood, when in force
   bool learn_at_lidar_ = false;          ///< the mixture is learnt by lidar-mcl's range probe
   std::deque<bool> recent_failed_;       ///< the NLOS test's verdicts on the last ranges
+  /// Several tags: a tag whose ranges the learning found clearly wider than all the tags'
+  /// together, its std over theirs; its ranges' std is the learnt one times it.
+  std::map<int, double> tag_scale_;
 };
 
 /// The ranges judged at the filter's pose, without weighting it (lidar-mcl with range_model=1,
