@@ -284,13 +284,6 @@ EpochUwbEstimator::TagTrack& EpochUwbEstimator::track(int tag) {
   return it->second;
 }
 
-std::optional<uwb::Fix> EpochUwbEstimator::epochFix(MultilaterationSolver solver,
-                                                    const std::vector<AcceptedRange>& epoch,
-                                                    std::vector<uwb::PlanarRange> planar,
-                                                    bool continuity, bool deskew) {
-  return epochFixOn(primary_track_, solver, epoch, std::move(planar), continuity, deskew);
-}
-
 std::optional<uwb::Fix> EpochUwbEstimator::epochFixOn(TagTrack& track, MultilaterationSolver solver,
                                                       const std::vector<AcceptedRange>& epoch,
                                                       std::vector<uwb::PlanarRange> planar,
@@ -334,6 +327,12 @@ TagsEpoch EpochUwbEstimator::tagsEpoch(MultilaterationSolver solver,
                                        const std::vector<AcceptedRange>& epoch, bool continuity,
                                        bool deskew) {
   TagsEpoch out;
+  if (!readsEveryTag()) {
+    out.primary =
+        epochFixOn(primary_track_, solver, epoch, toPlanar(epoch, sigma_), continuity, deskew);
+    out.primary_lever = epoch.front().measurement.tag_on_robot;
+    return out;
+  }
   std::map<int, std::vector<AcceptedRange>> by_tag;
   for (const auto& r : epoch) by_tag[r.measurement.tag_id].push_back(r);
   struct Tag {
@@ -416,7 +415,6 @@ TagsEpoch EpochUwbEstimator::tagsEpoch(MultilaterationSolver solver,
     return out;
   }
   out.fit = fit;
-  out.tags = static_cast<int>(points.size());
   // The primary tag's point, J Sigma J^T with J = d(t + R(theta) l)/d(t, theta) = [I, R' l].
   const Eigen::Vector2d lever = out.primary_lever.head<2>();
   Eigen::Matrix<double, 2, 3> j;

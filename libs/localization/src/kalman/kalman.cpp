@@ -50,18 +50,15 @@ bool HeadingTrack::update(double t, double heading, double variance) {
   if (started_ && gated_in_a_row_ < max_gated_) {
     predictHeading(x_, p_, std::max(0.0, t - t_), accel_psd_);
     t_ = std::max(t_, t);
-    const double y = wrapAngle(heading - x_(0));
-    const double s = p_(0, 0) + variance;
-    if (y * y > 10.83 * s) {
+    const Mat<1, 2> h(1.0, 0.0);
+    const Mat<1, 1> r = Mat<1, 1>::Constant(variance);
+    const auto inn = innovate<2, 1>(p_, Vec<1>::Constant(wrapAngle(heading - x_(0))), h, r);
+    if (!inGate(inn, uwb::ChiSquareGate(10.83))) {  // 1 dof, 99.9 %
       ++gated_in_a_row_;
       return false;
     }
-    const Vec<2> k = p_.col(0) / s;
-    x_ += k * y;
+    josephUpdate(x_, p_, inn, h, r);
     x_(0) = wrapAngle(x_(0));
-    Mat<2, 2> ikh = Mat<2, 2>::Identity();
-    ikh.col(0) -= k;
-    p_ = ikh * p_ * ikh.transpose() + variance * k * k.transpose();
     gated_in_a_row_ = 0;
     return true;
   }

@@ -7,19 +7,6 @@
 
 namespace uwbloc::loc {
 
-std::optional<uwb::Fix> FixFilter::primaryFix(const std::vector<AcceptedRange>& epoch, double t,
-                                              Eigen::Vector3d* lever) {
-  if (!readsEveryTag()) {
-    *lever = epoch.front().measurement.tag_on_robot;
-    return epochFix(fix_.solver, epoch, toPlanar(epoch, rangeSigma()), fix_.continuity,
-                    fix_.deskew);
-  }
-  const TagsEpoch tags = tagsEpoch(fix_.solver, epoch, fix_.continuity, fix_.deskew);
-  if (tags.fit) heading_track_.update(t, tags.fit->pose.z(), tags.fit->covariance(2, 2));
-  *lever = tags.primary_lever;
-  return tags.primary;
-}
-
 void FixFilter::useTrackedHeading(PoseEstimate& e, const Eigen::Vector3d& lever) const {
   const auto heading = heading_track_.at(e.t);
   constexpr double kMaxStd = 30.0 * M_PI / 180.0;
@@ -36,10 +23,13 @@ void FixFilter::useTrackedHeading(PoseEstimate& e, const Eigen::Vector3d& lever)
 
 std::optional<PoseEstimate> FixFilter::onEpoch(const std::vector<AcceptedRange>& epoch) {
   const double t = epochTime(epoch);
-  Eigen::Vector3d lever = Eigen::Vector3d::Zero();
-  const auto checked = primaryFix(epoch, t, &lever);
-  if (!checked) return std::nullopt;
-  const uwb::Fix& fix = *checked;
+  // The primary tag's fix (from the tags' rigid fit, whose heading feeds the heading track, when
+  // every tag is read).
+  const TagsEpoch tags = tagsEpoch(fix_.solver, epoch, fix_.continuity, fix_.deskew);
+  if (tags.fit) heading_track_.update(t, tags.fit->pose.z(), tags.fit->covariance(2, 2));
+  if (!tags.primary) return std::nullopt;
+  const uwb::Fix& fix = *tags.primary;
+  const Eigen::Vector3d& lever = tags.primary_lever;
   const bool consistent = fix.residual_norm <= fix_.init_residual;
   auto initialise = [&] {
     start(fix);

@@ -17,33 +17,26 @@ MultilaterationEstimator::MultilaterationEstimator(MultilaterationSolver solver,
 std::optional<PoseEstimate> MultilaterationEstimator::onEpoch(
     const std::vector<AcceptedRange>& epoch) {
   const double t = epochTime(epoch);
-  std::optional<uwb::Fix> fix;
-  Eigen::Vector3d lever = epoch.front().measurement.tag_on_robot;
-  if (readsEveryTag()) {
-    const TagsEpoch tags = tagsEpoch(solver_, epoch, params_.continuity, params_.deskew);
-    if (tags.fit) {
-      // The pose and heading of the fit; a later epoch of the primary tag alone keeps the heading.
-      heading_.setHeading(tags.fit->pose.z());
-      last_tag_ = tags.primary->position;
-      last_t_ = t;
-      PoseEstimate e;
-      e.t = t;
-      e.pose = tags.fit->pose;
-      e.covariance = tags.fit->covariance;
-      e.heading_valid = true;
-      return e;
-    }
-    fix = tags.primary;
-    lever = tags.primary_lever;
-  } else {
-    fix =
-        epochFix(solver_, epoch, toPlanar(epoch, rangeSigma()), params_.continuity, params_.deskew);
+  const TagsEpoch tags = tagsEpoch(solver_, epoch, params_.continuity, params_.deskew);
+  if (tags.fit) {
+    // The pose and heading of the fit; a later epoch of the primary tag alone keeps the heading.
+    heading_.setHeading(tags.fit->pose.z());
+    last_tag_ = tags.primary->position;
+    last_t_ = t;
+    PoseEstimate e;
+    e.t = t;
+    e.pose = tags.fit->pose;
+    e.covariance = tags.fit->covariance;
+    e.heading_valid = true;
+    return e;
   }
-  if (!fix) return std::nullopt;
-  if (last_tag_ && t > last_t_) heading_.update((fix->position - *last_tag_) / (t - last_t_));
-  last_tag_ = fix->position;
+  if (!tags.primary) return std::nullopt;
+  const uwb::Fix& fix = *tags.primary;
+  if (last_tag_ && t > last_t_) heading_.update((fix.position - *last_tag_) / (t - last_t_));
+  last_tag_ = fix.position;
   last_t_ = t;
-  return kalman::tagTrackPose(t, fix->position, fix->covariance, lever, heading_.heading());
+  return kalman::tagTrackPose(t, fix.position, fix.covariance, tags.primary_lever,
+                              heading_.heading());
 }
 
 }  // namespace uwbloc::loc

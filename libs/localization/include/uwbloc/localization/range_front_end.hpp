@@ -268,7 +268,6 @@ struct TagsEpoch {
   std::optional<uwb::Fix> primary;
   /// The primary tag's lever arm (once one of its ranges has been seen: the fit needs it).
   Eigen::Vector3d primary_lever = Eigen::Vector3d::Zero();
-  int tags = 0;  ///< tags fitted
 };
 
 /// Base of the per-epoch UWB methods: accepted ranges are grouped into epochs and each closed
@@ -301,17 +300,9 @@ class EpochUwbEstimator : public UwbEstimator {
   /// A method that estimates its noise itself (Sage-Husa) takes only the learnt range
   /// correction, and keeps its own std (and q) to start its estimates from.
   virtual bool estimatesOwnNoise() const { return false; }
-  /// The epoch's fix by `solver` from `planar` (toPlanar of the epoch); with `continuity`, checked
-  /// against the tag's reach since the last fix, from the start pose's tag (fix_continuity.hpp),
-  /// and with `deskew` as well, from the ranges moved to the epoch's time along the track's
-  /// velocity (deskewRanges) once it has one. Nothing when the solver fails or the check refuses
-  /// the epoch; each is counted.
-  std::optional<uwb::Fix> epochFix(MultilaterationSolver solver,
-                                   const std::vector<AcceptedRange>& epoch,
-                                   std::vector<uwb::PlanarRange> planar, bool continuity,
-                                   bool deskew);
-  /// With every tag read (TagUse::kAll): each tag of the epoch multilaterated on its own as
-  /// epochFix does the primary tag's, against its own continuity track (deskewed along it with
+  /// The epoch's fixes. With the primary tag read alone: its fix (epochFixOn its track). With
+  /// every tag read (TagUse::kAll): each tag of the epoch multilaterated on its own the same way,
+  /// against its own continuity track (deskewed along it with
   /// `deskew`), and the lever arms of two tags or more fitted to those points
   /// (uwb::fitRigidBody), each point's covariance taken at the range variance the tags' fixes
   /// show (the median of their residual variance over the last 201, once there are 5). A tag of
@@ -351,7 +342,11 @@ class EpochUwbEstimator : public UwbEstimator {
   };
   /// The track of `tag`: the primary tag's, or another's, made on first use (fresh()).
   TagTrack& track(int tag);
-  /// epochFix on `track`.
+  /// A tag's fix by `solver` from `planar` (toPlanar of its ranges); with `continuity`, checked
+  /// against the tag's reach since the last fix on `track`, from the start pose's tag
+  /// (fix_continuity.hpp), and with `deskew` as well, from the ranges moved to the epoch's time
+  /// along the track's velocity (deskewRanges) once it has one. Nothing when the solver fails or
+  /// the check refuses the epoch; each is counted.
   std::optional<uwb::Fix> epochFixOn(TagTrack& track, MultilaterationSolver solver,
                                      const std::vector<AcceptedRange>& epoch,
                                      std::vector<uwb::PlanarRange> planar, bool continuity,

@@ -78,10 +78,6 @@ class FixFilter : public EpochUwbEstimator {
   const FixFilterParams& fixParams() const { return fix_; }
 
  private:
-  /// The epoch's fix of the primary tag: from tagsEpoch when it fits two tags or more (its heading
-  /// into the heading track), else from the primary tag's ranges. `lever`: that tag's lever arm.
-  std::optional<uwb::Fix> primaryFix(const std::vector<AcceptedRange>& epoch, double t,
-                                     Eigen::Vector3d* lever);
   /// The estimate with the heading track's heading, while its std is within 30 degrees: the
   /// robot's position moved to it about the tag's point, heading_valid.
   void useTrackedHeading(PoseEstimate& e, const Eigen::Vector3d& lever) const;
