@@ -542,6 +542,41 @@ TEST(EpochWindow, RangesOneAnchorAtATimeFormEpochsFromTheDataRate) {
   EXPECT_LT(automatic.metrics.rmse_2d, 0.4);  // the tag moves 0.26 m during one round
 }
 
+// window=auto with several tags, by hand: three tags, four anchors, a round every 0.5 s. Tags in
+// turn (each tag its four anchors, then the next tag, a range every 0.02 s) span 0.22 s a round;
+// tags together (an anchor's three ranges at one instant, the anchors 0.06 s apart) span 0.18 s.
+// The window is 1.2 times the span, and every closed epoch holds all 12 links. The gaps alone gave
+// the 0.15 s minimum to both (tags together: two gaps in three are zero; in turn: 1.2 (4 - 1)
+// 0.02 s), which split every round. One tag alone keeps the gap rule.
+TEST(EpochWindow, SeveralTagsTakeTheWindowFromTheRoundTheyRangeIn) {
+  auto feed = [](bool in_turn, int tags) {
+    loc::EpochBuffer buffer(loc::AutoDouble{});
+    std::vector<size_t> sizes;
+    const int links = 4 * tags;
+    for (int k = 0; k < 40 * links; ++k) {
+      const int slot = k % links, round = k / links;
+      loc::AcceptedRange r;
+      r.measurement.anchor_id = in_turn ? slot % 4 : slot / tags;
+      r.measurement.tag_id = in_turn ? slot / 4 : slot % tags;
+      // Tags together share their anchor's instant; in turn, each range has its own.
+      const int tick = in_turn || tags == 1 ? slot : (slot / tags) * tags;
+      r.measurement.t = 100.0 + 0.5 * round + 0.02 * tick;
+      if (auto epoch = buffer.add(r); epoch && round > 20) sizes.push_back(epoch->size());
+    }
+    return std::make_pair(buffer.window(), sizes);
+  };
+  for (bool in_turn : {false, true}) {
+    const auto [window, sizes] = feed(in_turn, 3);
+    // Tags together span 3 anchor instants (0.18 s); in turn, 11 ranges (0.22 s).
+    EXPECT_NEAR(window, 1.2 * (in_turn ? 0.22 : 0.18), 1e-9) << in_turn;
+    ASSERT_FALSE(sizes.empty());
+    for (size_t n : sizes) EXPECT_EQ(n, 12u) << in_turn;
+  }
+  const auto [window, sizes] = feed(false, 1);
+  EXPECT_NEAR(window, loc::EpochBuffer::kMinEpochWindow, 1e-9);
+  for (size_t n : sizes) EXPECT_EQ(n, 4u);
+}
+
 // A fix from ranges taken one anchor at a time stands for the tag at their mean time: four
 // ranges 0.13 s apart are stamped at the second and third's midpoint, not at the last.
 TEST(EpochWindow, AnEpochIsStampedAtTheMeanTimeOfItsRanges) {

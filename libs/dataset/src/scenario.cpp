@@ -223,6 +223,7 @@ void readUwb(const IniFile& ini, const std::string& path, Scenario& s) {
   auto& u = s.uwb;
   readDouble(ini, "uwb", "rate", u.rate);
   u.synchronous = boolean(ini, "uwb", "synchronous", u.synchronous);
+  u.tags_in_turn = boolean(ini, "uwb", "tags_in_turn", u.tags_in_turn);
   readDouble(ini, "uwb", "sigma", u.sigma);
   readDouble(ini, "uwb", "sigma_per_m", u.sigma_per_m);
   readDouble(ini, "uwb", "bias", u.bias);

@@ -117,12 +117,43 @@ std::string formatTimeXyPhi(const std::vector<TimedPose>& poses) {
 namespace {
 
 // Ranges from every tag on the robot (tag 0, then the extra tags) to one anchor at time t.
-void measureRobotTags(RangeModel& model, double t, const Eigen::Vector3d& pose,
-                      const uwb::Anchor& anchor, const UwbSimSpec& uwb,
-                      std::vector<loc::Event>& out, std::vector<RangeTruth>* truth,
-                      bool tag0 = true) {
-  if (tag0) model.measure(t, 0, uwb::tagPosition(pose, uwb.tag), anchor, uwb.tag, out, truth);
-  for (const auto& [id, tag] : uwb.extra_tags)
+// One slot of a ranging round: when, after the round's start, the robot's tags in it range to
+// one anchor.
+struct RangeSlot {
+  double offset;                                      ///< [s]
+  std::vector<std::pair<int, Eigen::Vector3d>> tags;  ///< id, position on the robot
+};
+
+// The slots in which the robot's tags range to anchor i of n at `rate`: one for every tag
+// together, or with tags_in_turn one per tag (tag 0, then the others by id), each in its own
+// share of the round. The anchors are staggered within a slot's span unless synchronous.
+// `tag0`: tag 0 is simulated (augment leaves a recording's own tag alone; its slot stays).
+std::vector<RangeSlot> rangeSlots(const UwbSimSpec& uwb, size_t i, size_t n, double rate,
+                                  bool tag0 = true) {
+  std::vector<std::pair<int, Eigen::Vector3d>> tags{{0, uwb.tag}};
+  tags.insert(tags.end(), uwb.extra_tags.begin(), uwb.extra_tags.end());
+  const double stagger = uwb.synchronous ? 0.0 : static_cast<double>(i) / static_cast<double>(n);
+  std::vector<RangeSlot> slots;
+  if (!uwb.tags_in_turn) {
+    slots.push_back({stagger / rate, tags});
+  } else {
+    const auto m = static_cast<double>(tags.size());
+    for (size_t j = 0; j < tags.size(); ++j)
+      slots.push_back({(static_cast<double>(j) + stagger) / (rate * m), {tags[j]}});
+  }
+  if (!tag0)
+    for (auto& slot : slots)
+      slot.tags.erase(std::remove_if(slot.tags.begin(), slot.tags.end(),
+                                     [](const auto& tag) { return tag.first == 0; }),
+                      slot.tags.end());
+  return slots;
+}
+
+// Every tag of `slot` ranges to `anchor` from the robot at `pose`.
+void measureSlot(RangeModel& model, double t, const Eigen::Vector3d& pose, const RangeSlot& slot,
+                 const uwb::Anchor& anchor, std::vector<loc::Event>& out,
+                 std::vector<RangeTruth>* truth) {
+  for (const auto& [id, tag] : slot.tags)
     model.measure(t, id, uwb::tagPosition(pose, tag), anchor, tag, out, truth);
 }
 
@@ -144,18 +175,20 @@ void simulateUwb(const Scenario& s, const TrajectorySampler& robot,
                  Rng& rng_uwb, Simulation& sim) {
   const double t0 = s.start_time;
   RangeModel model(s.uwb, world, rng_uwb);
-  const double n_anchors = static_cast<double>(s.anchors.size());
   for (size_t i = 0; i < s.anchors.size(); ++i) {
     const auto rate_it = s.uwb.anchor_rate.find(s.anchors[i].id);
     const double rate = rate_it != s.uwb.anchor_rate.end() ? rate_it->second : s.uwb.rate;
     const auto n_uwb = static_cast<long>(std::floor(s.duration * rate + 1e-9));
-    const double offset = s.uwb.synchronous ? 0.0 : static_cast<double>(i) / (rate * n_anchors);
+    const auto slots = rangeSlots(s.uwb, i, s.anchors.size(), rate);
     for (long k = 0; k <= n_uwb; ++k) {
-      const double t = k / rate + offset;
-      if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
-      const Eigen::Vector3d pose = robot.pose(t);
-      measureRobotTags(model, t0 + t, pose, s.anchors[i], s.uwb, sim.events, &sim.range_truth);
-      if (tag2) {
+      for (const auto& slot : slots) {
+        const double t = k / rate + slot.offset;
+        if (t > s.duration || inAny(s.uwb.dropouts, t)) continue;
+        measureSlot(model, t0 + t, robot.pose(t), slot, s.anchors[i], sim.events, &sim.range_truth);
+      }
+      const double t = k / rate + slots.front().offset;
+      if (tag2 && t <= s.duration && !inAny(s.uwb.dropouts, t)) {
+        const Eigen::Vector3d pose = robot.pose(t);
         const Eigen::Vector3d p2 = tag2->pose(t);
         const Eigen::Vector3d tag2_world(p2.x(), p2.y(), s.tag2.height);
         const Eigen::Vector3d on_tag2(0.0, 0.0, s.tag2.height);
@@ -363,19 +396,27 @@ std::vector<loc::Event> augmentWithUwb(const std::vector<loc::Event>& events,
   if (!path) path = &own;
   const double start = reference.front().t, end = reference.back().t;
   const auto n = static_cast<long>(std::floor((end - start) * uwb.rate));
-  size_t j = 0;
+  std::vector<std::vector<RangeSlot>> slots;
+  for (size_t i = 0; i < anchors.size(); ++i)
+    slots.push_back(rangeSlots(uwb, i, anchors.size(), uwb.rate, simulate_tag0));
   for (long k = 0; k <= n; ++k) {
     for (size_t i = 0; i < anchors.size(); ++i) {
-      const double offset =
-          uwb.synchronous ? 0.0 : static_cast<double>(i) / (uwb.rate * anchors.size());
-      const double t = start + k / uwb.rate + offset;
-      if (t > end || inAny(uwb.dropouts, t - start)) continue;
-      while (j + 2 < reference.size() && reference[j + 1].t < t) ++j;
-      const auto& a = reference[j];
-      const auto& b = reference[j + 1];
-      // Do not invent poses across gaps in the reference.
-      if (b.t - a.t > max_gap || t < a.t || t > b.t) continue;
-      measureRobotTags(model, t, path->at(a, b, t), anchors[i], uwb, out, truth, simulate_tag0);
+      for (const auto& slot : slots[i]) {
+        const double t = start + k / uwb.rate + slot.offset;
+        if (slot.tags.empty() || t > end || inAny(uwb.dropouts, t - start)) continue;
+        // The reference poses around t (tags in turn take the slots out of time order).
+        const auto after =
+            std::lower_bound(reference.begin(), reference.end(), t,
+                             [](const TimedPose& p, double time) { return p.t < time; });
+        const size_t j = std::min(
+            static_cast<size_t>(std::max<std::ptrdiff_t>(after - reference.begin() - 1, 0)),
+            reference.size() - 2);
+        const auto& a = reference[j];
+        const auto& b = reference[j + 1];
+        // Do not invent poses across gaps in the reference.
+        if (b.t - a.t > max_gap || t < a.t || t > b.t) continue;
+        measureSlot(model, t, path->at(a, b, t), slot, anchors[i], out, truth);
+      }
     }
   }
   loc::sortByTime(out);

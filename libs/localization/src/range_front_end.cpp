@@ -285,11 +285,11 @@ EpochUwbEstimator::TagTrack& EpochUwbEstimator::track(int tag) {
 }
 
 std::optional<uwb::Fix> EpochUwbEstimator::epochFixOn(TagTrack& track, MultilaterationSolver solver,
+                                                      double t,
                                                       const std::vector<AcceptedRange>& epoch,
                                                       std::vector<uwb::PlanarRange> planar,
                                                       bool continuity, bool deskew) {
   if (continuity && deskew) {
-    const double t = epochTime(epoch);
     if (auto motion = track.continuity.motion(t))
       planar = deskewRanges(epoch, std::move(planar), t, *motion);
   }
@@ -299,7 +299,7 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFixOn(TagTrack& track, Multilate
     // that the next fix is judged from a recent position (emitting it as a fix measured worse:
     // Hanyang NLOS A1, uwb-kf 0.837 -> 0.900 m).
     if (continuity && track.seeded && planar.size() == 2 &&
-        track.continuity.checkTwo(epochTime(epoch), planar).fix)
+        track.continuity.checkTwo(t, planar).fix)
       ++stats_.events[toString(Continuity::kTwoRanges)];
     countRejection(std::string("epoch_") + uwb::toString(fix.status));
     return std::nullopt;
@@ -308,7 +308,7 @@ std::optional<uwb::Fix> EpochUwbEstimator::epochFixOn(TagTrack& track, Multilate
   std::optional<Eigen::Vector2d> seed;
   if (initial_pose_) seed = tagFromRobot(*initial_pose_, epoch.front().measurement.tag_on_robot);
   return checkedOn(
-             track, epoch, fix, planar,
+             track, t, epoch, fix, planar,
              [&](const auto& subset) { return multilaterate(solver, subset); },
              Eigen::Vector2d::Zero(), seed)
       .fix;
@@ -328,13 +328,14 @@ TagsEpoch EpochUwbEstimator::tagsEpoch(MultilaterationSolver solver,
                                        bool deskew) {
   TagsEpoch out;
   if (!readsEveryTag()) {
-    out.primary =
-        epochFixOn(primary_track_, solver, epoch, toPlanar(epoch, sigma_), continuity, deskew);
+    out.primary = epochFixOn(primary_track_, solver, epochTime(epoch), epoch,
+                             toPlanar(epoch, sigma_), continuity, deskew);
     out.primary_lever = epoch.front().measurement.tag_on_robot;
     return out;
   }
   std::map<int, std::vector<AcceptedRange>> by_tag;
   for (const auto& r : epoch) by_tag[r.measurement.tag_id].push_back(r);
+  const double t = epochTime(epoch);
   struct Tag {
     int id;
     const std::vector<AcceptedRange>* ranges;
@@ -342,7 +343,10 @@ TagsEpoch EpochUwbEstimator::tagsEpoch(MultilaterationSolver solver,
   };
   std::vector<std::pair<Tag, uwb::Fix>> fixed;
   for (const auto& [id, ranges] : by_tag) {
-    auto fix = epochFixOn(track(id), solver, ranges, toPlanar(ranges, sigma_), continuity, deskew);
+    // Every tag's point at the epoch's time, so that the lever arms fit points of one instant
+    // (tags that range in turn take their ranges at different times).
+    auto fix =
+        epochFixOn(track(id), solver, t, ranges, toPlanar(ranges, sigma_), continuity, deskew);
     if (id == primary_tag_) {
       out.primary = fix;
       primary_lever_ = ranges.front().measurement.tag_on_robot;
@@ -434,16 +438,16 @@ FixContinuity::Checked EpochUwbEstimator::continuityChecked(
     const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
     const std::vector<uwb::PlanarRange>& planar, const FixContinuity::Solver& solve,
     const Eigen::Vector2d& offset, const std::optional<Eigen::Vector2d>& seed) {
-  return checkedOn(primary_track_, epoch, fix, planar, solve, offset, seed);
+  return checkedOn(primary_track_, epochTime(epoch), epoch, fix, planar, solve, offset, seed);
 }
 
 FixContinuity::Checked EpochUwbEstimator::checkedOn(
-    TagTrack& track, const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
+    TagTrack& track, double t, const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
     const std::vector<uwb::PlanarRange>& planar, const FixContinuity::Solver& solve,
     const Eigen::Vector2d& offset, const std::optional<Eigen::Vector2d>& seed) {
   if (!track.seeded && seed) track.continuity.seed(initial_time_, *seed);
   track.seeded = true;
-  auto checked = track.continuity.check(epochTime(epoch), fix, planar, solve, offset);
+  auto checked = track.continuity.check(t, fix, planar, solve, offset);
   if (checked.outcome == Continuity::kUnreachable) {
     countRejection(toString(checked.outcome));
   } else if (checked.outcome != Continuity::kAsIs) {
@@ -467,14 +471,26 @@ uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::Plan
   return uwb::solveLinearLS(ranges);
 }
 
+namespace {
+// The median of the first n values of a ring buffer.
+template <size_t N>
+double ringMedian(std::array<double, N> ring, size_t n) {
+  std::nth_element(ring.begin(), ring.begin() + static_cast<long>(n / 2),
+                   ring.begin() + static_cast<long>(n));
+  return ring[n / 2];
+}
+}  // namespace
+
 double EpochBuffer::window() const {
   if (window_.value) return *window_.value;
+  if (tags_seen_.size() >= 2) {
+    const size_t rounds = std::min(rounds_seen_, round_spans_.size());
+    if (rounds == 0) return kMinEpochWindow;
+    return std::max(kMinEpochWindow, 1.2 * ringMedian(round_spans_, rounds));
+  }
   const size_t n = std::min(gaps_seen_, gaps_.size());
   if (n == 0 || anchors_seen_.size() < 2) return kMinEpochWindow;
-  std::array<double, 64> g = gaps_;
-  std::nth_element(g.begin(), g.begin() + static_cast<long>(n / 2),
-                   g.begin() + static_cast<long>(n));
-  const double round = 1.2 * static_cast<double>(anchors_seen_.size() - 1) * g[n / 2];
+  const double round = 1.2 * static_cast<double>(anchors_seen_.size() - 1) * ringMedian(gaps_, n);
   return std::max(kMinEpochWindow, round);
 }
 
@@ -484,10 +500,20 @@ std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& 
     gaps_[gaps_seen_ % gaps_.size()] = std::max(0.0, t - last_t_);
     ++gaps_seen_;
   }
+  const std::pair<int, int> link{r.measurement.anchor_id, r.measurement.tag_id};
+  if (std::find(round_links_.begin(), round_links_.end(), link) != round_links_.end()) {
+    round_spans_[rounds_seen_ % round_spans_.size()] = std::max(0.0, last_t_ - round_start_);
+    ++rounds_seen_;
+    round_links_.clear();
+  }
+  if (round_links_.empty()) round_start_ = t;
+  round_links_.push_back(link);
   last_t_ = t;
   if (std::find(anchors_seen_.begin(), anchors_seen_.end(), r.measurement.anchor_id) ==
       anchors_seen_.end())
     anchors_seen_.push_back(r.measurement.anchor_id);
+  if (std::find(tags_seen_.begin(), tags_seen_.end(), r.measurement.tag_id) == tags_seen_.end())
+    tags_seen_.push_back(r.measurement.tag_id);
   std::optional<std::vector<AcceptedRange>> closed;
   if (!open_.empty()) {
     const bool too_late = r.measurement.t - open_.front().measurement.t > window();

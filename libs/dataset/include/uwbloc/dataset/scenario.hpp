@@ -44,8 +44,12 @@ struct UwbSimSpec {
   bool features = false;              ///< write received and first-path power
   Eigen::Vector3d tag = Eigen::Vector3d(0, 0, 1.0);  ///< tag on the robot [m]
   /// More tags on the robot ([uwb] tag_<id> = x y z; id 1 is the [tag2] mobile node's): each
-  /// ranges to every anchor at the same instants as tag 0.
+  /// ranges to every anchor at the same instants as tag 0, unless tags_in_turn.
   std::map<int, Eigen::Vector3d> extra_tags;
+  /// Several tags range in turn (time-division: each tag has its own slot of every round, tag 0
+  /// first, then the others by id, the anchors staggered within it unless synchronous) instead
+  /// of together.
+  bool tags_in_turn = false;
   double max_range = 60.0;  ///< no ranges beyond this [m]
 };
 

@@ -237,7 +237,11 @@ inline constexpr const char* kDeskewHelp =
 /// seen, 1.2 (n_anchors - 1) times the median gap between consecutive ranges (over the last 64),
 /// and never below kMinEpochWindow. Ranges that arrive together (one stamp per round, the MRPT
 /// demo) give a zero gap and the shortest window; ranges that arrive one anchor at a time (CMU
-/// Plaza, about 4 per second) give a window of about one second.
+/// Plaza, about 4 per second) give a window of about one second. With several tags the gaps
+/// between consecutive ranges do not tell a round (tags that range together give zero gaps
+/// between one anchor's ranges, tags that range in turn give a round several times one tag's):
+/// the window is then 1.2 times the median span of the last 16 rounds, a round being the ranges
+/// up to the first that repeats an anchor-tag link, and never below kMinEpochWindow.
 class EpochBuffer {
  public:
   static constexpr double kMinEpochWindow = 0.15;  ///< [s]
@@ -256,6 +260,11 @@ class EpochBuffer {
   size_t gaps_seen_ = 0;
   double last_t_ = 0.0;
   std::vector<int> anchors_seen_;
+  std::vector<int> tags_seen_;
+  std::vector<std::pair<int, int>> round_links_;  ///< the open round's anchor-tag links
+  double round_start_ = 0.0;                      ///< its first range's time [s]
+  std::array<double, 16> round_spans_{};          ///< the last closed rounds' spans [s]
+  size_t rounds_seen_ = 0;
 };
 
 /// An epoch of several tags' ranges (EpochUwbEstimator::tagsEpoch).
@@ -342,18 +351,20 @@ class EpochUwbEstimator : public UwbEstimator {
   };
   /// The track of `tag`: the primary tag's, or another's, made on first use (fresh()).
   TagTrack& track(int tag);
-  /// A tag's fix by `solver` from `planar` (toPlanar of its ranges); with `continuity`, checked
-  /// against the tag's reach since the last fix on `track`, from the start pose's tag
-  /// (fix_continuity.hpp), and with `deskew` as well, from the ranges moved to the epoch's time
-  /// along the track's velocity (deskewRanges) once it has one. Nothing when the solver fails or
-  /// the check refuses the epoch; each is counted.
-  std::optional<uwb::Fix> epochFixOn(TagTrack& track, MultilaterationSolver solver,
+  /// A tag's fix by `solver` from `planar` (toPlanar of its ranges `epoch`) at time `t` (the
+  /// epoch's: with several tags, that of every tag's ranges); with `continuity`, checked against
+  /// the tag's reach since the last fix on `track`, from the start pose's tag
+  /// (fix_continuity.hpp), and with `deskew` as well, from the ranges moved to `t` along the
+  /// track's velocity (deskewRanges) once it has one. Nothing when the solver fails or the check
+  /// refuses the epoch; each is counted.
+  std::optional<uwb::Fix> epochFixOn(TagTrack& track, MultilaterationSolver solver, double t,
                                      const std::vector<AcceptedRange>& epoch,
                                      std::vector<uwb::PlanarRange> planar, bool continuity,
                                      bool deskew);
-  /// continuityChecked on `track`.
-  FixContinuity::Checked checkedOn(TagTrack& track, const std::vector<AcceptedRange>& epoch,
-                                   const uwb::Fix& fix, const std::vector<uwb::PlanarRange>& planar,
+  /// continuityChecked on `track`, the fix taken at time `t`.
+  FixContinuity::Checked checkedOn(TagTrack& track, double t,
+                                   const std::vector<AcceptedRange>& epoch, const uwb::Fix& fix,
+                                   const std::vector<uwb::PlanarRange>& planar,
                                    const FixContinuity::Solver& solve,
                                    const Eigen::Vector2d& offset,
                                    const std::optional<Eigen::Vector2d>& seed);
