@@ -260,7 +260,7 @@ int RunMethodsCommand::run() {
   const eval::DatasetBounds bounds = bounds_future.get();
   eval::writeRunDirectory(
       out, ds, summaries,
-      {manifest, data_dir, opt.seed, opt.repeat, bounds, wall_s, jobs_used, plots_, {}});
+      {manifest, data_dir, opt.seed, opt.repeat, bounds, wall_s, jobs_used, plots_, {}, {}});
   std::cout << eval::formatTable(ds, summaries, bounds);
   std::printf(
       "Wall time of the %zu runs (with building and checking every method): %.2f s on %d "

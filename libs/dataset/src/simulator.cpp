@@ -116,7 +116,6 @@ std::string formatTimeXyPhi(const std::vector<TimedPose>& poses) {
 
 namespace {
 
-// Ranges from every tag on the robot (tag 0, then the extra tags) to one anchor at time t.
 // One slot of a ranging round: when, after the round's start, the robot's tags in it range to
 // one anchor.
 struct RangeSlot {
