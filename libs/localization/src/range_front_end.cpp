@@ -471,39 +471,23 @@ uwb::Fix multilaterate(MultilaterationSolver solver, const std::vector<uwb::Plan
   return uwb::solveLinearLS(ranges);
 }
 
-namespace {
-// The median of the first n values of a ring buffer.
-template <size_t N>
-double ringMedian(std::array<double, N> ring, size_t n) {
-  std::nth_element(ring.begin(), ring.begin() + static_cast<long>(n / 2),
-                   ring.begin() + static_cast<long>(n));
-  return ring[n / 2];
-}
-}  // namespace
-
 double EpochBuffer::window() const {
   if (window_.value) return *window_.value;
   if (tags_seen_.size() >= 2) {
-    const size_t rounds = std::min(rounds_seen_, round_spans_.size());
-    if (rounds == 0) return kMinEpochWindow;
-    return std::max(kMinEpochWindow, 1.2 * ringMedian(round_spans_, rounds));
+    if (round_spans_.size() == 0) return kMinEpochWindow;
+    return std::max(kMinEpochWindow, 1.2 * round_spans_.median());
   }
-  const size_t n = std::min(gaps_seen_, gaps_.size());
-  if (n == 0 || anchors_seen_.size() < 2) return kMinEpochWindow;
-  const double round = 1.2 * static_cast<double>(anchors_seen_.size() - 1) * ringMedian(gaps_, n);
+  if (gaps_.size() == 0 || anchors_seen_.size() < 2) return kMinEpochWindow;
+  const double round = 1.2 * static_cast<double>(anchors_seen_.size() - 1) * gaps_.median();
   return std::max(kMinEpochWindow, round);
 }
 
 std::optional<std::vector<AcceptedRange>> EpochBuffer::add(const AcceptedRange& r) {
   const double t = r.measurement.t;
-  if (gaps_seen_ > 0 || !anchors_seen_.empty()) {
-    gaps_[gaps_seen_ % gaps_.size()] = std::max(0.0, t - last_t_);
-    ++gaps_seen_;
-  }
+  if (!anchors_seen_.empty()) gaps_.add(std::max(0.0, t - last_t_));  // not the first range
   const std::pair<int, int> link{r.measurement.anchor_id, r.measurement.tag_id};
   if (std::find(round_links_.begin(), round_links_.end(), link) != round_links_.end()) {
-    round_spans_[rounds_seen_ % round_spans_.size()] = std::max(0.0, last_t_ - round_start_);
-    ++rounds_seen_;
+    round_spans_.add(std::max(0.0, last_t_ - round_start_));
     round_links_.clear();
   }
   if (round_links_.empty()) round_start_ = t;

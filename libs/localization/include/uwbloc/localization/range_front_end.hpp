@@ -256,15 +256,13 @@ class EpochBuffer {
  private:
   AutoDouble window_;
   std::vector<AcceptedRange> open_;
-  std::array<double, 64> gaps_{};  ///< the last gaps between consecutive ranges [s]
-  size_t gaps_seen_ = 0;
+  WindowMedian gaps_{64};  ///< the last gaps between consecutive ranges [s]
   double last_t_ = 0.0;
   std::vector<int> anchors_seen_;
   std::vector<int> tags_seen_;
   std::vector<std::pair<int, int>> round_links_;  ///< the open round's anchor-tag links
   double round_start_ = 0.0;                      ///< its first range's time [s]
-  std::array<double, 16> round_spans_{};          ///< the last closed rounds' spans [s]
-  size_t rounds_seen_ = 0;
+  WindowMedian round_spans_{16};                  ///< the last closed rounds' spans [s]
 };
 
 /// An epoch of several tags' ranges (EpochUwbEstimator::tagsEpoch).

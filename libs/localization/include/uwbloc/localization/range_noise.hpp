@@ -55,7 +55,7 @@ class WindowMedian {
     ++count_;
   }
   size_t size() const { return values_.size(); }
-  double median() {
+  double median() const {
     scratch_.assign(values_.begin(), values_.end());
     if (scratch_.empty()) return 0.0;
     const auto m = scratch_.begin() + static_cast<std::ptrdiff_t>(scratch_.size() / 2);
@@ -66,7 +66,8 @@ class WindowMedian {
  private:
   size_t window_;
   size_t count_ = 0;
-  std::vector<double> values_, scratch_;
+  std::vector<double> values_;
+  mutable std::vector<double> scratch_;  ///< median()'s workspace, kept to reuse its memory
 };
 
 /// bias=auto's test on an anchor's offsets (range minus predicted distance): a bias stands out
