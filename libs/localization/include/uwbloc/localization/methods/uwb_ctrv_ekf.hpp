@@ -4,15 +4,16 @@
 // covariance), behind the range front end's increment-queue gate (§2.1, on by default: `iq`).
 // The fix is Gauss-Newton's by default; the paper's least squares (§2.2, solver=ls) left the
 // heading swinging with its lateral errors (Hanyang LOS A1 1.909 against 1.330 m, Plaza2 9.2
-// against 2.6 m). It starts from the first consistent fix at rest, with the start pose's heading
-// when the run has one; without one, at every restart, and when the course's variance has grown
-// past a full turn, the speed and course come from a straight-line fit of the fixes once they
-// have moved (startCourse). The update is the toolkit's (innovation, chi-square gate, Joseph
-// form).
+// against 2.6 m). At rest (at the start, at every restart, and whenever the speed falls within
+// 2 sigma of zero or the course's variance grows past a full turn) the course is unobservable,
+// and the linearised CTRV model would spread the position along the held course only: the state
+// is then a constant-velocity track of the position and a Cartesian velocity, and the CTRV state
+// is taken from that velocity once its speed stands beyond 3 sigma (startCourse; event
+// `course_lost` on each return to rest). The update is the toolkit's (innovation, chi-square
+// gate, Joseph form).
 #pragma once
 
 #include <Eigen/Core>
-#include <deque>
 
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/localization/methods/fix_filter.hpp"
@@ -49,21 +50,20 @@ class UwbCtrvEkf : public FixFilter {
   void learn(const EstimatorStatistics& learnt) override;
 
  private:
-  /// Without a course: the position alone until the fixes have moved; false when gated.
-  bool trackUntilMoved(const uwb::Fix& fix, double dt);
-  /// Speed and course from the fixes since the start once they have moved; false before.
-  bool startCourse();
+  /// At rest: a constant-velocity filter of the position and a Cartesian velocity (startCourse
+  /// leaves it once the tag moves); false when gated.
+  bool trackAtRest(const uwb::Fix& fix, double dt);
+  /// No course: to track at rest from the position, the velocity zero with the speed's spread.
+  void loseCourse();
+  /// The CTRV state from the Cartesian velocity once its speed is beyond 3 sigma.
+  void startCourse();
 
-  struct PendingFix {
-    double t;                  ///< since the start [s]
-    Eigen::Vector2d position;  ///< the fix
-    double variance;           ///< its per-axis variance [m^2]
-  };
   UwbCtrvEkfParams params_;
   bool started_ = false;         ///< a start has happened (the start pose's heading is used up)
-  bool course_pending_ = false;  ///< started without a course: trackUntilMoved
-  static constexpr size_t kMaxPending = 50;  ///< fixes the course fit keeps (a robot at rest)
-  std::deque<PendingFix> pending_;           ///< the latest fixes since that start
+  bool at_rest_ = true;          ///< trackAtRest: the state is cv_x_, cv_p_
+  bool last_refused_ = false;    ///< the last fix was gated
+  Eigen::Vector4d cv_x_ = Eigen::Vector4d::Zero();  ///< at rest: x, y, vx, vy
+  Eigen::Matrix4d cv_p_ = Eigen::Matrix4d::Identity();
   double start_speed_var_ = 1.0;  ///< [m^2/s^2]
   std::optional<double> start_heading_;
   Eigen::Matrix<double, 5, 1> x_ = Eigen::Matrix<double, 5, 1>::Zero();
