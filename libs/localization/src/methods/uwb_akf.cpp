@@ -1,5 +1,6 @@
 #include "uwbloc/localization/methods/uwb_akf.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
@@ -17,6 +18,7 @@ void UwbAkf::start(const uwb::Fix& fix) {
   measurement_.R = fix.covariance;
   process_.mean = akf_.estimatesMean(true);
   measurement_.mean = akf_.estimatesMean(false);
+  measurement_.from_residual = akf_.rFromResidual();
   // The starting statistics count as akf_.priorSteps() steps already taken (UwbAkfParams).
   measurement_.k = process_.k = akf_.priorSteps();
 }
@@ -41,8 +43,15 @@ bool UwbAkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   }
   Eigen::Matrix<double, 2, 4> h = Eigen::Matrix<double, 2, 4>::Zero();
   h.leftCols<2>().setIdentity();
+  // R̂'s eigenvalues at or above the fix's variance along its best-determined axis
+  // (UwbAkfParams::r_floor_fix), else the positivity guard alone.
+  double r_floor = akf_.r_floor;
+  if (akf_.r_floor_fix) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(fix.covariance);
+    r_floor = std::max(r_floor, std::sqrt(std::max(0.0, eig.eigenvalues()(0))));
+  }
   const auto step = kalman::sageHusaStep<4, 2>(x_, p_, process_, measurement_, f, fix.position, h,
-                                               akf_.forgetting, akf_.gamma, akf_.r_floor);
+                                               akf_.forgetting, akf_.gamma, r_floor);
   if (step.diverged) ++stats_.events["divergence_inflated"];
   if (step.r_projected) ++stats_.events["r_kept_positive"];
   if (step.q_projected) ++stats_.events["q_kept_positive"];

@@ -13,9 +13,10 @@
 // The statistics start from uwb-kf's and uwb-ekf's models: Q̂_0 the constant-velocity process
 // noise over the data's first interval, R̂_0 the first fix's covariance (fix) or sigma^2 (ranges),
 // q̂_0 = r̂_0 = 0; on the fix Q̂ is then kept at or above the model's Q over each interval
-// (q_floor). The fix mode does not gate: the paper's filters adapt to what a gate would drop.
-// The range mode gates as uwb-ekf does, or a faulty anchor's ranges come back as its error
-// shrinks through the gate (the MRPT demo's beacon 1: 5.53 m without the quarantine).
+// (q_floor), and R̂ at or above each fix's variance along its best-determined axis (r_floor_fix).
+// The fix mode does not gate: the paper's filters adapt to what a gate would drop. The range mode
+// gates as uwb-ekf does, or a faulty anchor's ranges come back as its error shrinks through the
+// gate (the MRPT demo's beacon 1: 5.53 m without the quarantine).
 #pragma once
 
 #include <map>
@@ -84,6 +85,14 @@ struct UwbAkfParams {
   /// against a fix error of about 0.5 m^2; the MRPT demo 0.443 m against uwb-kf's 0.171). The
   /// floor stops Q̂ from following R̂ down; the adaptation may still raise it.
   bool q_floor = true;
+  /// On the fix: R̂'s eigenvalues kept at or above the fix's own variance along its
+  /// best-determined axis (its covariance's smaller eigenvalue: the range sigma through the
+  /// anchors' geometry), not only at r_floor. From the innovations, R̂ = e e^T - H P H^T falls
+  /// below it wherever P carries Q̂'s floor or the divergence test's inflation: uwb-iakf kept R̂
+  /// at the 0.01 m guard at 1170 of 1201 fixes on multitag_room and trusted each fix as if its
+  /// std were 1 cm (0.033 m; 0.031 m with this floor). Its full covariance as the floor cost the
+  /// MRPT demo, whose fixes from two anchors are wide along one axis (uwb-akf 0.175 -> 0.185 m).
+  bool r_floor_fix = true;
   /// The steps the starting statistics (R̂_0: the fix's covariance, or sigma^2 per anchor; Q̂_0:
   /// the model's) count as (kalman::sageHusaStartStep).
   AutoDouble prior_steps;
@@ -108,6 +117,9 @@ struct UwbAkfParams {
       "on the fix: the estimated Q kept at or above the constant-velocity model's over each "
       "interval, q learnt as uwb-kf learns it (the innovations give Q+R only as a sum: without "
       "the floor a lagging filter reads its lag as R and falls further behind); 0: eq. 16 alone");
+    v("r_floor_fix", r_floor_fix,
+      "on the fix: the estimated R's eigenvalues kept at or above the fix's own variance along "
+      "its best-determined axis (the range sigma through the geometry); 0: r_floor alone");
     v("prior_steps", prior_steps, kalman::kPriorStepsHelp);
     v("r_from", r_from,
       "what the estimated R is learnt from: innovation (eq. 25: e e' - H P H'), residual (the "
