@@ -33,11 +33,7 @@ void UwbCtrvEkf::start(const uwb::Fix& fix) {
   p_(4, 4) = 0.25;
   started_ = true;
   at_rest_ = true;
-  last_refused_ = false;
-  cv_x_ << fix.position, 0.0, 0.0;
-  cv_p_.setZero();
-  cv_p_.topLeftCorner<2, 2>() = fix.covariance;
-  cv_p_.bottomRightCorner<2, 2>() = start_speed_var_ * Eigen::Matrix2d::Identity();
+  kalman::initialiseFromFix(fix, cv_x_, cv_p_, std::sqrt(start_speed_var_));
 }
 
 // The course is lost when its variance has grown past a full turn or the speed is within 2 sigma
@@ -79,7 +75,6 @@ bool UwbCtrvEkf::trackAtRest(const uwb::Fix& fix, double dt) {
     kalman::josephUpdate<4, 2>(cv_x_, cv_p_, inn, h, fix.covariance);
   else
     countRejection("kf_innovation_gate");
-  last_refused_ = !in_gate;
   x_.head<2>() = cv_x_.head<2>();
   p_.topLeftCorner<2, 2>() = cv_p_.topLeftCorner<2, 2>();
   startCourse();
@@ -116,7 +111,7 @@ bool UwbCtrvEkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   // after max_gated refusals (the least-squares fixes on Plaza2: 7.79 -> 6.19 m).
   if (!at_rest_ && (p_(3, 3) > M_PI * M_PI || x_(2) * x_(2) < 4.0 * p_(2, 2))) {
     loseCourse();
-    if (last_refused_) {
+    if (lastFixRefused()) {
       ++stats_.resets;
       start(fix);
       return true;
@@ -134,10 +129,8 @@ bool UwbCtrvEkf::predictAndUpdate(const uwb::Fix& fix, double dt) {
   const auto inn = kalman::innovate<5, 2>(p_, fix.position - x_.head<2>(), h, fix.covariance);
   if (!kalman::inGate(inn, uwb::ChiSquareGate(params_.fix.gate))) {
     countRejection("kf_innovation_gate");
-    last_refused_ = true;
     return false;
   }
-  last_refused_ = false;
   kalman::josephUpdate<5, 2>(x_, p_, inn, h, fix.covariance);
   return true;
 }

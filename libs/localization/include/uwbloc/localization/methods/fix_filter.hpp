@@ -76,6 +76,8 @@ class FixFilter : public EpochUwbEstimator {
   virtual PoseEstimate pose(double t, const Eigen::Vector3d& tag_on_robot) = 0;
 
   const FixFilterParams& fixParams() const { return fix_; }
+  /// Whether the last fix was refused (gated) and no restart has happened since.
+  bool lastFixRefused() const { return gated_in_a_row_ > 0; }
 
  private:
   /// The estimate with the heading track's heading, while its std is within 30 degrees: the

@@ -61,7 +61,6 @@ class UwbCtrvEkf : public FixFilter {
   UwbCtrvEkfParams params_;
   bool started_ = false;         ///< a start has happened (the start pose's heading is used up)
   bool at_rest_ = true;          ///< trackAtRest: the state is cv_x_, cv_p_
-  bool last_refused_ = false;    ///< the last fix was gated
   Eigen::Vector4d cv_x_ = Eigen::Vector4d::Zero();  ///< at rest: x, y, vx, vy
   Eigen::Matrix4d cv_p_ = Eigen::Matrix4d::Identity();
   double start_speed_var_ = 1.0;  ///< [m^2/s^2]
