@@ -162,7 +162,8 @@ class NlosCommand : public Command {
  private:
   CLI::App *train_ = nullptr, *eval_ = nullptr, *cv_ = nullptr, *cross_ = nullptr;
   std::vector<std::string> files_;
-  std::string data_dir_, out_, model_path_, features_ = "auto", model_types_ = "trees-density";
+  std::string data_dir_, out_, model_path_, features_ = "auto", model_types_ = "trees-density",
+                                            centre_ = "none";
   nlos::TrainParams base_;
   int folds_ = 5, repeats_ = 5;
   double target_weight_ = 0.0;

@@ -83,6 +83,15 @@ void NlosCommand::declare(CLI::App& parser) {
                   "(normalised for transfer), cir-raw, power (what a range carries: received "
                   "minus first-path power, first-path power, range), sagehusa")
         ->capture_default_str();
+    c->add_option("--centre", centre_,
+                  "environment: each file's features less their medians over that file (its "
+                  "place; no label used), which carries a model to a place whose device reads "
+                  "louder or quieter when the two places have a like share of NLOS ranges, and "
+                  "calls most ranges NLOS where the new place's share differs (README: NLOS "
+                  "identification); a filter takes the medians of the ranges it receives. "
+                  "none: the features as measured")
+        ->check(CLI::IsMember({"environment", "none"}))
+        ->capture_default_str();
     c->add_option("--rounds", base_.rounds, "boosting rounds")
         ->check(CLI::Range(1, 10000))
         ->capture_default_str();
@@ -158,13 +167,18 @@ int NlosCommand::run() {
   if (eval_->parsed()) {
     const auto model = nlos::Model::load(model_path_);
     std::cout << "model: " << model_path_ << " (" << nlos::toString(model.set) << ", "
-              << model.objective << ")\n";
+              << model.objective << (model.centred ? ", centred on each file's medians" : "")
+              << ")\n";
+    if (model.centred)
+      for (auto& t : tables) nlos::centreOnEnvironment(t, model.set);
     printHeader();
     for (const auto& t : tables) printScores(baseName(t.source), "loaded", nlos::score(model, nlos::pointers(t)));
     return kSuccess;
   }
   base_.set = features_ == "auto" ? (all_cir ? nlos::FeatureSet::kCir : nlos::FeatureSet::kPower)
                                   : nlos::parseFeatureSet(features_);
+  if (centre_ == "environment")
+    for (auto& t : tables) nlos::centreOnEnvironment(t, base_.set);
   std::vector<ModelChoice> choices;
   for (const auto& name : splitList(model_types_)) choices.push_back(modelChoice(name, base_));
   if (choices.empty()) throw nlos::DataError("--model-type: no model type given");
@@ -182,12 +196,14 @@ int NlosCommand::run() {
     model.trained_on = sources;
     model.save(out_);
     std::cout << "Trained " << choices[0].name << " on " << rows.size() << " rows ("
-              << nlos::toString(model.set) << " features): " << out_ << "\n";
+              << nlos::toString(model.set) << " features"
+              << (model.centred ? ", centred on each file's medians" : "") << "): " << out_ << "\n";
     printHeader();
     printScores("training rows (optimistic)", choices[0].name, nlos::score(model, rows));
     return kSuccess;
   }
-  std::cout << "features: " << nlos::toString(base_.set) << "\n";
+  std::cout << "features: " << nlos::toString(base_.set)
+            << (centre_ == "environment" ? ", centred on each file's medians" : "") << "\n";
   printHeader();
   if (cv_->parsed()) {
     for (const auto& t : tables)

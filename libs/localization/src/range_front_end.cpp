@@ -53,7 +53,9 @@ RangeFrontEnd::RangeFrontEnd(const RangeFrontEndParams& params, std::vector<uwb:
                                             params.iq_floor, 10}),
       tags_(tags),
       primary_tag_(primary_tag),
-      mobile_(params.mobile_window, params.mobile_var.value, params.sigmaValue()) {}
+      mobile_(params.mobile_window, params.mobile_var.value, params.sigmaValue()) {
+  if (nlos_ && nlos_->centred) centre_.emplace(nlos_->set);
+}
 
 void MobileAnchors::add(const uwb::Range& range, const std::vector<uwb::Anchor>& fixed) {
   const uwb::Anchor* a = uwb::findAnchor(fixed, range.anchor_id);
@@ -130,7 +132,18 @@ bool RangeFrontEnd::judge(AcceptedRange& r) {
     r.nlos_decision = "nlos_no_powers";
     return true;
   }
-  const nlos::Judgement j = nlos_->judge(nlos::sampleOf(m));
+  nlos::Sample sample = nlos::sampleOf(m);
+  if (centre_) {
+    // A centred model judges a range by where it stands among this place's ranges: until
+    // there are enough of them to say, the range passes as measured.
+    centre_->add(nlos::features(nlos_->set, sample));
+    sample.centre = centre_->centre();
+    if (!sample.centre) {
+      r.nlos_decision = "nlos_warming_up";
+      return true;
+    }
+  }
+  const nlos::Judgement j = nlos_->judge(sample);
   m.nlos_probability = j.p_nlos;
   const double sigma = params_.sigmaValue();
   switch (params_.nlos_use) {

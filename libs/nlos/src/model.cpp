@@ -1,5 +1,6 @@
 #include "uwbloc/nlos/model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -93,7 +94,84 @@ FeatureVector features(FeatureSet set, const Sample& s) {
       x[0] = pd, x[1] = s.innovation;
       break;
   }
+  if (s.centre) {
+    if (s.centre->set != set)
+      throw std::logic_error(std::string("a range centred for the feature set ") +
+                             toString(s.centre->set) + " asked for " + toString(set));
+    for (int j = 0; j < kMaxFeatures; ++j)
+      if (std::isfinite(s.centre->median[static_cast<size_t>(j)]))
+        x[static_cast<size_t>(j)] -= s.centre->median[static_cast<size_t>(j)];
+  }
   return x;
+}
+
+namespace {
+double medianOf(std::vector<double>& v) {
+  if (v.empty()) return NAN;
+  const auto mid = v.begin() + static_cast<long>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+}  // namespace
+
+EnvironmentCentre environmentCentre(FeatureSet set, const std::vector<const Sample*>& rows) {
+  EnvironmentCentre c;
+  c.set = set;
+  c.rows = static_cast<long>(rows.size());
+  const size_t n = static_cast<size_t>(featureCount(set));
+  std::vector<std::vector<double>> values(n);
+  for (const Sample* s : rows) {
+    Sample plain = *s;
+    plain.centre.reset();
+    const FeatureVector x = features(set, plain);
+    for (size_t j = 0; j < n; ++j)
+      if (std::isfinite(x[j])) values[j].push_back(x[j]);
+  }
+  c.median.fill(NAN);
+  for (size_t j = 0; j < n; ++j) c.median[j] = medianOf(values[j]);
+  return c;
+}
+
+void centreOnEnvironment(Table& t, FeatureSet set) {
+  std::vector<const Sample*> rows;
+  rows.reserve(t.rows.size());
+  for (const auto& s : t.rows) rows.push_back(&s);
+  const auto centre = std::make_shared<const EnvironmentCentre>(environmentCentre(set, rows));
+  for (auto& s : t.rows) s.centre = centre;
+}
+
+RunningCentre::RunningCentre(FeatureSet set, long min_rows, long freeze_at)
+    : set_(set),
+      min_rows_(std::max(1L, min_rows)),
+      freeze_at_(std::max(min_rows_, freeze_at)),
+      next_(min_rows_),
+      values_(static_cast<size_t>(featureCount(set))) {}
+
+void RunningCentre::add(const FeatureVector& x) {
+  if (seen_ >= freeze_at_) return;
+  ++seen_;
+  for (size_t j = 0; j < values_.size(); ++j)
+    if (std::isfinite(x[j])) values_[j].push_back(x[j]);
+  if (seen_ < next_ && seen_ < freeze_at_) return;
+  next_ *= 2;
+  auto c = std::make_shared<EnvironmentCentre>();
+  c->set = set_;
+  c->rows = seen_;
+  c->median.fill(NAN);
+  for (size_t j = 0; j < values_.size(); ++j) {
+    std::vector<double> v = values_[j];
+    c->median[j] = medianOf(v);
+  }
+  centre_ = std::move(c);
+  if (seen_ >= freeze_at_) values_.clear();
+}
+
+Judgement Model::judge(const Sample& s) const {
+  if (centred && !s.centre)
+    throw DataError(
+        "the NLOS model was trained on features centred on their environment's "
+        "medians; this range carries no centre");
+  return judge(features(set, s));
 }
 
 Sample sampleOf(const uwb::Range& r, double innovation) {
@@ -247,6 +325,7 @@ std::string Model::toJson() const {
   j["classifier"] = nlos::toJson(classifier);
   j["regressor"] = nlos::toJson(regressor);
   j["error_sigma"] = {{"los", sigma_los}, {"nlos", sigma_nlos}};
+  j["centred"] = centred;
   j["trained_on"] = trained_on;
   j["training_rows"] = training_rows;
   return j.dump();
@@ -271,6 +350,7 @@ Model Model::fromJson(const std::string& text, const std::string& source) {
     m.sigma_nlos = j.at("error_sigma").at("nlos").get<double>();
     if (!(m.sigma_los > 0.0 && m.sigma_los < 1e6) || !(m.sigma_nlos > 0.0 && m.sigma_nlos < 1e6))
       throw DataError(source + ": error_sigma must be positive and finite");
+    m.centred = j.value("centred", false);
     m.trained_on = j.value("trained_on", std::vector<std::string>{});
     if (j.contains("training_rows") && j.at("training_rows").is_number_integer())
       m.training_rows = j.at("training_rows").get<long>();

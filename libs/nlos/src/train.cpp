@@ -308,8 +308,11 @@ Model train(const std::vector<const Sample*>& rows, const TrainParams& params,
   if (!weights.empty() && weights.size() != rows.size())
     throw DataError("one weight per training row is needed");
   long positives = 0;
+  const bool centred = rows.front()->centre != nullptr;
   for (const Sample* s : rows) {
     if (s->label != 0 && s->label != 1) throw DataError("a training row has no LOS/NLOS label");
+    if ((s->centre != nullptr) != centred)
+      throw DataError("training rows mix features centred on their environment with raw ones");
     positives += s->label;
   }
   if (positives == 0 || positives == static_cast<long>(rows.size()))
@@ -319,6 +322,7 @@ Model train(const std::vector<const Sample*>& rows, const TrainParams& params,
   Model model;
   model.kind = params.kind;
   model.set = params.set;
+  model.centred = centred;
   model.training_rows = static_cast<long>(rows.size());
   const Matrix m = featureMatrix(rows, params.set);
   std::vector<float> y, w;

@@ -12,13 +12,10 @@
 #include "uwbloc/localization/estimator.hpp"
 #include "uwbloc/localization/fix_continuity.hpp"
 #include "uwbloc/localization/range_noise.hpp"
+#include "uwbloc/nlos/model.hpp"
 #include "uwbloc/uwb/gates.hpp"
 #include "uwbloc/uwb/multilateration.hpp"
 #include "uwbloc/uwb/rigid_fit.hpp"
-
-namespace uwbloc::nlos {
-class Model;
-}
 
 namespace uwbloc::loc {
 
@@ -176,6 +173,8 @@ class RangeFrontEnd {
 
   RangeFrontEndParams params_;
   std::shared_ptr<const nlos::Model> nlos_;
+  /// A centred model's environment: the medians of the ranges received so far.
+  std::optional<nlos::RunningCentre> centre_;
   std::vector<uwb::Anchor> anchors_;
   uwb::IncrementQueueGate increments_;
   double last_t_ = -1e300;

@@ -32,8 +32,43 @@ int featureCount(FeatureSet set);
 
 constexpr int kMaxFeatures = 12;
 using FeatureVector = std::array<double, kMaxFeatures>;
-/// The set's features of `s` (the first featureNames(set).size() entries are used).
+/// The set's features of `s` (the first featureNames(set).size() entries are used), less the
+/// sample's environment centre when it carries one (of the same set: else std::logic_error).
 FeatureVector features(FeatureSet set, const Sample& s);
+
+/// An environment's centre: the median of each feature over its ranges (labels unused, so a
+/// robot can take it from the ranges it receives). Antennas, the device's calibration and the
+/// preamble move the powers and amplitudes of every range in a place together, by more than
+/// the LOS / NLOS difference across places: the Ghent IIoT and university files differ by
+/// several dB. A model trained on features centred on their own environment's medians, and
+/// fed features centred on the new place's, judges by where a range stands in its place's
+/// spread, which carries across places (see README "NLOS identification").
+struct EnvironmentCentre {
+  FeatureSet set = FeatureSet::kPower;
+  FeatureVector median{};  ///< NaN where no range carried the feature: that one stays as is
+  long rows = 0;           ///< ranges it was taken over
+};
+/// The centre of `rows` for `set` (their own centres ignored).
+EnvironmentCentre environmentCentre(FeatureSet set, const std::vector<const Sample*>& rows);
+/// Points every row of `t` at the centre of its rows for `set`.
+void centreOnEnvironment(Table& t, FeatureSet set);
+
+/// An environment's centre taken on line from the ranges as they arrive: the medians of the
+/// features seen so far, re-taken at 32, 64, 128, ... ranges and kept from `freeze_at` on.
+class RunningCentre {
+ public:
+  explicit RunningCentre(FeatureSet set, long min_rows = 32, long freeze_at = 4096);
+  /// Adds a range's (uncentred) features.
+  void add(const FeatureVector& x);
+  /// The centre once `min_rows` ranges were seen; none before.
+  std::shared_ptr<const EnvironmentCentre> centre() const { return centre_; }
+
+ private:
+  FeatureSet set_;
+  long min_rows_, freeze_at_, next_ = 0, seen_ = 0;
+  std::vector<std::vector<double>> values_;  // per feature
+  std::shared_ptr<const EnvironmentCentre> centre_;
+};
 /// A Sample from what a uwb::Range carries (powers and range); the innovation when given.
 Sample sampleOf(const uwb::Range& r, double innovation = NAN);
 
@@ -71,11 +106,15 @@ class Model {
   Additive classifier;    ///< margin: P(NLOS) = 1 / (1 + exp(-margin))
   Additive regressor;     ///< expected error [m]
   double sigma_los = 0.1, sigma_nlos = 0.3;  ///< residual std of the regressor by class [m]
+  /// Trained on features centred on each environment's medians (EnvironmentCentre): it judges
+  /// only ranges that carry their environment's centre.
+  bool centred = false;
   std::vector<std::string> trained_on;       ///< source files
   long training_rows = 0;
 
   Judgement judge(const FeatureVector& x) const;
-  Judgement judge(const Sample& s) const { return judge(features(set, s)); }
+  /// Throws DataError when the model is centred and `s` carries no centre.
+  Judgement judge(const Sample& s) const;
   int featureCount() const { return nlos::featureCount(set); }
 
   std::string toJson() const;

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -16,6 +17,8 @@ namespace uwbloc::nlos {
 struct DataError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+struct EnvironmentCentre;  // model.hpp
 
 /// One range with what the device reported about it. A quantity the file does not carry is NaN.
 struct Sample {
@@ -37,6 +40,9 @@ struct Sample {
   double true_range = NAN;  ///< [m]
   int label = -1;           ///< 1 NLOS, 0 LOS, -1 unknown
   std::string group;        ///< rows from one spot share it (grouped cross-validation)
+  /// The medians of the features over the environment the range came from, subtracted from
+  /// them by features() (centreOnEnvironment, RunningCentre); none: the features as measured.
+  std::shared_ptr<const EnvironmentCentre> centre;
 
   /// Estimated minus true range [m]; NaN without a truth.
   double error() const { return range - true_range; }
