@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <memory>
 #include <string>
 
 #include "uwbloc/dataset/errors.hpp"
@@ -40,6 +41,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         std::string(reinterpret_cast<const char*>(data), size), "fuzz");
     uwbloc::nlos::Sample s;
     s.range = 5.0, s.rx_power_dbm = -80.0, s.fp_power_dbm = -84.0;
+    if (model.centred) {  // a centred model judges ranges that carry their place's medians
+      auto centre = std::make_shared<uwbloc::nlos::EnvironmentCentre>();
+      centre->set = model.set;
+      centre->median.fill(1.0);
+      s.centre = centre;
+    }
     const auto j = model.judge(s);
     if (!std::isfinite(j.p_nlos) || !std::isfinite(j.error) || !std::isfinite(j.error_sigma))
       __builtin_trap();

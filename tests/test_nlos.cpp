@@ -327,8 +327,8 @@ TEST(NlosFolds, EveryGroupInOneFold) {
 namespace {
 
 // A range with powers, accepted by a front end that uses the model in `path`.
-std::optional<loc::AcceptedRange> judged(const std::string& path, loc::NlosUse use, double pd,
-                                         uwb::RejectReason* reason = nullptr) {
+// A front end with one anchor at the origin that uses the model in `path`.
+std::unique_ptr<loc::RangeFrontEnd> frontEndUsing(const std::string& path, loc::NlosUse use) {
   loc::RangeFrontEndParams p;
   p.nlos_model = "model:" + path;
   p.nlos_use = use;
@@ -338,14 +338,20 @@ std::optional<loc::AcceptedRange> judged(const std::string& path, loc::NlosUse u
   context.nlos_models = [](const std::string& file) {
     return std::make_shared<const nlos::Model>(nlos::Model::load(file));
   };
-  loc::RangeFrontEnd front(p, context.anchors, loc::resolveNlosModel(p, context));
+  return std::make_unique<loc::RangeFrontEnd>(p, context.anchors,
+                                              loc::resolveNlosModel(p, context));
+}
+
+std::optional<loc::AcceptedRange> judged(const std::string& path, loc::NlosUse use, double pd,
+                                         uwb::RejectReason* reason = nullptr) {
+  auto front = frontEndUsing(path, use);
   uwb::Range r;
   r.t = 1.0;
   r.anchor_id = 1;
   r.range = 10.0;
   r.fp_power_dbm = -85.0;
   r.rx_power_dbm = -85.0 + pd;
-  return front.accept(r, reason);
+  return front->accept(r, reason);
 }
 
 }  // namespace
@@ -401,15 +407,7 @@ TEST(NlosFrontEnd, ACentredModelJudgesOnceItHasItsPlacesMedians) {
   auto home = louderPlace(600, 0.0, 14);
   nlos::centreOnEnvironment(home, nlos::FeatureSet::kPower);
   nlos::train(nlos::pointers(home), params(nlos::Model::Kind::kLogistic, "irls")).save(path);
-  loc::RangeFrontEndParams p;
-  p.nlos_model = "model:" + path;
-  p.increment_gate = false;
-  loc::EstimatorContext context;
-  context.anchors = {{1, Eigen::Vector3d(0, 0, 0)}};
-  context.nlos_models = [](const std::string& file) {
-    return std::make_shared<const nlos::Model>(nlos::Model::load(file));
-  };
-  loc::RangeFrontEnd front(p, context.anchors, loc::resolveNlosModel(p, context));
+  auto front = frontEndUsing(path, loc::NlosUse::kWeight);
   // This place's device reads 8 dB loud; its ranges alternate LOS and NLOS.
   const auto away = louderPlace(200, 8.0, 15);
   int pending = 0, caught = 0, nlos_rows = 0;
@@ -421,7 +419,7 @@ TEST(NlosFrontEnd, ACentredModelJudgesOnceItHasItsPlacesMedians) {
     r.fp_power_dbm = away.rows[i].fp_power_dbm;
     r.rx_power_dbm = away.rows[i].rx_power_dbm;
     uwb::RejectReason reason{};
-    const auto a = front.accept(r, &reason);
+    const auto a = front->accept(r, &reason);
     ASSERT_TRUE(a);
     if (std::string(a->nlos_decision) == "nlos_warming_up") {
       ++pending;

@@ -2,6 +2,7 @@
 // demo and the simulated PF-IBAS room against the baselines (10 fixed seeds).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <limits>
 #include <map>
 #include <string>
@@ -165,11 +166,12 @@ TEST(MrptDemo, GraphLowersPfIbas) {
 }
 
 TEST(PfIbasRoom, SequentialWeightsMatchTwoHundredParticles) {
-  // The simulated PF-IBAS room (seed 1), 10 filter seeds. With the swarm in every epoch and
-  // eq. (28) as printed, the weights forget what each particle weighed before the epoch, and
-  // carrying them (the default) does better. Its ranges come between the scans: the swarm in
-  // the scans' epochs only (the default) does better still, and brings PF-IBAS-40 level with
-  // PF-SIR-200.
+  // The simulated PF-IBAS room (seed 1), 10 filter seeds. With the swarm in every epoch, eq. (28)
+  // as printed (the weights forget what each particle weighed before the epoch) and the weights
+  // carried (the default) score alike: 0.0758 +- 0.0015 against 0.0751 +- 0.0020 m, and 0.0762
+  // against 0.0764 m with the particles held at the last odometry increment between increments
+  // (carry=0). Its ranges come between the scans: the swarm in the scans' epochs only (the
+  // default) does far better, and brings PF-IBAS-40 level with PF-SIR-200.
   const auto ds = test::simulatedScenario("pfibas_room", 1);
   const auto pf = eval::evaluateMethod(ds, "pf-ibas", 10, 1);
   const auto sequential = eval::evaluateMethod(ds, "pf-ibas:ibas_epochs=all", 10, 1);
@@ -181,8 +183,10 @@ TEST(PfIbasRoom, SequentialWeightsMatchTwoHundredParticles) {
       "eq. (28) weights %.4f +- %.4f m; pf-sir (n=200) %.4f +- %.4f m\n",
       pf.metrics.rmse_2d, pf.rmse_2d_std, sequential.metrics.rmse_2d, sequential.rmse_2d_std,
       fitness.metrics.rmse_2d, fitness.rmse_2d_std, sir.metrics.rmse_2d, sir.rmse_2d_std);
-  EXPECT_LT(sequential.metrics.rmse_2d, fitness.metrics.rmse_2d);
-  EXPECT_LT(pf.metrics.rmse_2d, sequential.metrics.rmse_2d);
+  EXPECT_NEAR(sequential.metrics.rmse_2d, fitness.metrics.rmse_2d,
+              sequential.rmse_2d_std + fitness.rmse_2d_std);
+  EXPECT_LT(pf.metrics.rmse_2d,
+            0.5 * std::min(sequential.metrics.rmse_2d, fitness.metrics.rmse_2d));
   EXPECT_LE(pf.metrics.rmse_2d, sir.metrics.rmse_2d + sir.rmse_2d_std);
   EXPECT_LT(pf.metrics.rmse_2d, 0.03);
 }
@@ -213,11 +217,16 @@ TEST(RangeModelProbe, FindsTheSimulatedRangeModelAtTheLidarPose) {
   EXPECT_EQ(plain.events.count("range_model_at_filter_pose"), 0u);
   // Its trajectory is lidar-mcl's: the ranges open epochs of their own but weigh nothing.
   EXPECT_NEAR(probe.metrics.rmse_2d, plain.metrics.rmse_2d, 0.003);
-  // The fused filters take their range mixture from it (calib_lidar=0: from the smoothing).
+  // The fused filters take their range mixture from it (calib_lidar=0: from the smoothing), its
+  // particles held between odometry increments (carry=0; see UwbRangeMeasurement::calibration).
   const auto fused = eval::evaluateMethod(ds, "fused-pf", 1, 1);
   EXPECT_EQ(fused.events.count("range_mixture_at_lidar_pose"), 1u);
   ASSERT_TRUE(fused.estimated_range_mixture);
-  EXPECT_DOUBLE_EQ(fused.estimated_range_mixture->sigma, m.sigma);  // as fitted, not widened
+  const auto held = eval::evaluateMethod(ds, "lidar-mcl:range_model=1,landmarks=0,carry=0", 1, 1);
+  ASSERT_TRUE(held.estimated_range_mixture);
+  EXPECT_NEAR(held.estimated_range_mixture->sigma, m.sigma, 0.002);
+  // As fitted, not widened.
+  EXPECT_DOUBLE_EQ(fused.estimated_range_mixture->sigma, held.estimated_range_mixture->sigma);
   const auto smoothed = eval::evaluateMethod(ds, "fused-pf:calib_lidar=0", 1, 1);
   EXPECT_EQ(smoothed.events.count("range_mixture_at_lidar_pose"), 0u);
 }

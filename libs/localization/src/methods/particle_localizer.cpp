@@ -120,7 +120,60 @@ std::vector<std::pair<std::string, std::string>> ParticleLocalizer::artifacts() 
   return out;
 }
 
+namespace {
+// SE(2)'s logarithm and exponential: the constant twist (per unit time) that makes an increment
+// over `span`, and the increment that a twist makes over a time.
+Eigen::Vector3d twistOf(const Eigen::Vector3d& delta, double span) {
+  const double th = delta.z();
+  Eigen::Vector2d v = delta.head<2>();
+  if (std::abs(th) > 1e-9) {
+    const double a = std::sin(th) / th, b = (1.0 - std::cos(th)) / th;
+    v = Eigen::Vector2d(a * delta.x() + b * delta.y(), -b * delta.x() + a * delta.y()) /
+        (a * a + b * b);
+  }
+  return Eigen::Vector3d(v.x(), v.y(), th) / span;
+}
+Eigen::Vector3d incrementOf(const Eigen::Vector3d& twist, double dt) {
+  const Eigen::Vector3d u = twist * dt;
+  const double th = u.z();
+  if (std::abs(th) <= 1e-9) return u;
+  const double a = std::sin(th) / th, b = (1.0 - std::cos(th)) / th;
+  return {a * u.x() - b * u.y(), b * u.x() + a * u.y(), th};
+}
+}  // namespace
+
+// Between odometry increments the particles stand where the last one left them; a range or a
+// scan taken later is weighed there unless they are carried to its time. The carried motion is
+// the last increment's twist, at most one increment's span ahead, without noise; the next
+// increment undoes it and moves them with its own noise, so that at each increment the cloud
+// is what it would have been without the carry.
+void ParticleLocalizer::carryTo(double t) {
+  if (!core_.carry || !(odo_span_ > 0.0) || !(t > cloud_t_)) return;
+  const double ahead = std::min(t, odo_t_ + odo_span_) - odo_t_;
+  if (!(ahead > 0.0)) return;
+  const Eigen::Vector3d target = incrementOf(odo_twist_, ahead);
+  pf_.shift(relativePose(carried_, target));
+  carried_ = target;
+  cloud_t_ = odo_t_ + ahead;
+}
+
+void ParticleLocalizer::odometry(const OdometryIncrement& odo) {
+  if (!carried_.isZero()) pf_.shift(relativePose(carried_, Eigen::Vector3d::Zero()));
+  carried_.setZero();
+  pf_.predict(odo.delta);
+  const double span = odo.t - odo_t_;
+  if (span > 1e-6) {  // the first increment, or one at the previous one's time, sets no rate
+    odo_span_ = span;
+    odo_twist_ = twistOf(odo.delta, span);
+  }
+  odo_t_ = odo.t;
+  cloud_t_ = odo.t;
+}
+
 void ParticleLocalizer::initialise() {
+  carried_.setZero();
+  odo_t_ = cloud_t_ = NAN;
+  odo_span_ = 0.0;
   for (auto& m : measurements_) m->reset();
   pf_.setStartParticles(core_.init_n);
   if (core_.init == InitMode::kTracking) {
@@ -200,12 +253,13 @@ std::optional<PoseEstimate> ParticleLocalizer::step(const Event& event) {
       return out;
     }
     if (epoch_open_) out = finishEpoch();  // motion at the epoch's own time: close it first
-    pf_.predict(odo->delta);
+    odometry(*odo);
     return out;
   }
   bool taken = false;
   for (auto& m : measurements_) taken = taken || m->take(event, stats_);
   if (taken && !epoch_open_) {
+    carryTo(t);  // an event no part takes (a range to a filter without UWB) moves nothing
     epoch_open_ = true;
     epoch_t_ = t;
   }

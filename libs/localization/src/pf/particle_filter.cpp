@@ -195,6 +195,15 @@ void ParticleFilter::predict(const Eigen::Vector3d& delta) {
   }
 }
 
+void ParticleFilter::shift(const Eigen::Vector3d& delta) {
+  for (size_t i = 0; i < set_.size(); ++i) {
+    const double c = std::cos(set_.theta[i]), s = std::sin(set_.theta[i]);
+    set_.x[i] += c * delta.x() - s * delta.y();
+    set_.y[i] += s * delta.x() + c * delta.y();
+    set_.theta[i] = wrapAngle(set_.theta[i] + delta.z());
+  }
+}
+
 void ParticleFilter::weight(const LogLikelihood& log_likelihood) {
   for (size_t i = 0; i < set_.size(); ++i) {
     const double l = log_likelihood(set_.x[i], set_.y[i], set_.theta[i]);

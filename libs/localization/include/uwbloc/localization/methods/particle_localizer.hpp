@@ -58,6 +58,10 @@ class ParticleLocalizer : public Estimator {
   /// A measurement model judged the filter lost: spread particles over the map again.
   void relocalise();
   std::optional<PoseEstimate> finishEpoch();
+  /// Carries the particles to time t at the last odometry increment's rate (core_.carry).
+  void carryTo(double t);
+  /// An odometry increment: the carried motion undone, then the increment with its noise.
+  void odometry(const OdometryIncrement& odo);
   /// The epoch's log-likelihood at one pose, summed over the measurement models.
   double epochLogLikelihood(double x, double y, double theta) const;
 
@@ -70,6 +74,10 @@ class ParticleLocalizer : public Estimator {
   double epoch_t_ = 0.0;
   bool epoch_open_ = false;
   int relocalise_n_ = 0;  ///< particles for relocalising (the LiDAR part's relocalise_n)
+  // Motion between odometry increments (carryTo): the last increment's time, its span and its
+  // twist per second, the time the particles stand at, and the motion carried since it.
+  double odo_t_ = NAN, odo_span_ = 0.0, cloud_t_ = NAN;
+  Eigen::Vector3d odo_twist_ = Eigen::Vector3d::Zero(), carried_ = Eigen::Vector3d::Zero();
   // Calibration (see above), with step() and learnt() bound once.
   LearningStart start_;
   LearningStart::Learnt learnt_ = [this](const EstimatorStatistics& s) { learnt(s); };

@@ -108,6 +108,8 @@ class ParticleFilter {
 
   /// Moves every particle by the odometry increment with sampled noise.
   void predict(const Eigen::Vector3d& delta);
+  /// Moves every particle by `delta` in its own frame, without noise.
+  void shift(const Eigen::Vector3d& delta);
   /// Adds the measurement's log-likelihood to every particle's log-weight.
   void weight(const LogLikelihood& log_likelihood);
   /// Normalises the weights (no resampling); returns the effective sample size.

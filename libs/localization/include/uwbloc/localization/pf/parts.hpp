@@ -43,6 +43,9 @@ struct ParticleCoreParams {
   double init_xy = 0.5;                 ///< tracking box half-width [m]
   double init_theta_deg = 20.0;         ///< tracking box half-width [deg]
   int init_n = 0;  ///< particles at the start, kept until the cloud converges (0: n)
+  /// Between odometry increments, carry the particles to each measurement's time at the last
+  /// increment's rate (see ParticleLocalizer::carryTo).
+  bool carry = true;
 
   template <class V>
   void visit(V&& v) {
@@ -59,6 +62,12 @@ struct ParticleCoreParams {
     v("init_n", init_n,
       "particles at the start (0: n), down to n once the heading std < 10 deg and the planar "
       "std < 0.3 m (for an unknown start heading or global localisation)");
+    v("carry", carry,
+      "between odometry increments, carry the particles to each measurement's time at the last "
+      "increment's rate, at most one increment's span ahead, without noise (the next increment "
+      "undoes it and moves them with its own noise): ranges and scans faster than the odometry "
+      "are weighed where the robot is when they are taken; 0: where it was at the last "
+      "increment");
   }
 };
 
