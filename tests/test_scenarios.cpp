@@ -207,4 +207,12 @@ TEST(Benchmark, TableOfMeanAndWorstSeedOverDatasets) {
   EXPECT_NE(md.find("| lidar-mcl |"), std::string::npos) << md;
   const std::string json = eval::formatBenchmarkJson(cells, 3);
   EXPECT_NE(json.find("\"rmse_2d_worst\""), std::string::npos);
+  // A parameter the method does not take, or no such method, is an error before any run, not
+  // a column of empty cells.
+  o.methods = {"uwb-gn", "pf-ibas+graph:carry=0"};
+  test::expectErrorMentions<loc::ParamError>([&] { eval::runBenchmark(datasets, o, log); },
+                                             {"pf-ibas+graph:carry=0", "carry"});
+  o.methods = {"uwb-gm"};
+  test::expectErrorMentions<loc::ParamError>([&] { eval::runBenchmark(datasets, o, log); },
+                                             {"unknown method 'uwb-gm'", "uwb-gn"});
 }

@@ -247,6 +247,7 @@ int BenchmarkCommand::run() {
   o.seeds = seeds_;
   o.methods = splitList(methods_);
   o.datasets = splitList(datasets_);
+  eval::checkBenchmarkMethods(o.methods);  // before the imports, which take minutes
   const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
   const auto cells = eval::runBenchmark(eval::prepareBenchmarkDatasets(o, log), o, log);
   const std::string md = eval::formatBenchmarkMarkdown(cells, seeds_);

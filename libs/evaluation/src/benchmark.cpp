@@ -77,6 +77,7 @@ void addCarmen(const BenchmarkOptions& o, const std::string& log_name,
 
 std::string cellText(const BenchmarkCell& c) {
   if (c.flag == "no_estimate") return "no estimate";
+  if (c.flag.rfind("error:", 0) == 0) return "error";
   char buf[96];
   std::snprintf(buf, sizeof buf, "%.3f / %.3f", c.mean_rmse, c.worst_rmse);
   std::string s = buf;
@@ -133,11 +134,29 @@ std::vector<BenchmarkDataset> prepareBenchmarkDatasets(
   return out;
 }
 
+// A spec that names no method, or a parameter its method does not take, would fail in every
+// cell: it is an error before the first run.
+void checkBenchmarkMethods(const std::vector<std::string>& specs) {
+  for (const auto& text : specs) {
+    const auto spec = loc::MethodSpec::parse(text);
+    const loc::MethodInfo* info = loc::Registry::builtin().find(spec.name);
+    if (!info)
+      throw loc::ParamError("unknown method '" + spec.name +
+                            "' (known: " + loc::Registry::builtin().knownNames() + ")");
+    loc::ParamSet params = spec.params;
+    params.setContext("method '" + text + "'");
+    std::vector<std::string> known;
+    for (const auto& p : info->defaults) known.push_back(p.key);
+    params.checkAllUsed(known);
+  }
+}
+
 std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& datasets,
                                         const BenchmarkOptions& o,
                                         const std::function<void(const std::string&)>& log) {
   std::vector<BenchmarkCell> cells;
   const auto methods = o.methods.empty() ? loc::Registry::builtin().names() : o.methods;
+  checkBenchmarkMethods(methods);
   for (const auto& d : datasets) {
     data::Dataset ds;
     try {
@@ -171,7 +190,8 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
         } catch (const std::exception& e) {
           c.flag = std::string("error: ") + e.what();
         }
-        log(d.name + " [" + variant + "] " + m + ": " + cellText(c));
+        log(d.name + " [" + variant + "] " + m + ": " +
+            (c.flag.rfind("error:", 0) == 0 ? c.flag : cellText(c)));
         cells.push_back(c);
       }
     }

@@ -39,6 +39,10 @@ struct BenchmarkCell {
   std::string flag;  ///< resultFlag()
 };
 
+/// Throws ParamError for a spec that names no method or a parameter its method does not take
+/// (runBenchmark checks its own; a caller checks before preparing the datasets).
+void checkBenchmarkMethods(const std::vector<std::string>& specs);
+
 /// Runs every applicable method on every dataset, defaults only; a dataset whose manifest states
 /// facts measured on it ([uwb] sigma) is also run with them.
 std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& datasets,
