@@ -62,7 +62,9 @@ const std::vector<std::string>& featureNames(FeatureSet set) {
 
 int featureCount(FeatureSet set) { return static_cast<int>(featureNames(set).size()); }
 
-FeatureVector features(FeatureSet set, const Sample& s) {
+namespace {
+// The set's features as the range was measured, whatever centre it carries.
+FeatureVector measuredFeatures(FeatureSet set, const Sample& s) {
   FeatureVector x;
   x.fill(NAN);
   const double pd = s.rx_power_dbm - s.fp_power_dbm;
@@ -94,6 +96,12 @@ FeatureVector features(FeatureSet set, const Sample& s) {
       x[0] = pd, x[1] = s.innovation;
       break;
   }
+  return x;
+}
+}  // namespace
+
+FeatureVector features(FeatureSet set, const Sample& s) {
+  FeatureVector x = measuredFeatures(set, s);
   if (s.centre) {
     if (s.centre->set != set)
       throw std::logic_error(std::string("a range centred for the feature set ") +
@@ -105,15 +113,6 @@ FeatureVector features(FeatureSet set, const Sample& s) {
   return x;
 }
 
-namespace {
-double medianOf(std::vector<double>& v) {
-  if (v.empty()) return NAN;
-  const auto mid = v.begin() + static_cast<long>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-}  // namespace
-
 EnvironmentCentre environmentCentre(FeatureSet set, const std::vector<const Sample*>& rows) {
   EnvironmentCentre c;
   c.set = set;
@@ -121,14 +120,12 @@ EnvironmentCentre environmentCentre(FeatureSet set, const std::vector<const Samp
   const size_t n = static_cast<size_t>(featureCount(set));
   std::vector<std::vector<double>> values(n);
   for (const Sample* s : rows) {
-    Sample plain = *s;
-    plain.centre.reset();
-    const FeatureVector x = features(set, plain);
+    const FeatureVector x = measuredFeatures(set, *s);
     for (size_t j = 0; j < n; ++j)
       if (std::isfinite(x[j])) values[j].push_back(x[j]);
   }
   c.median.fill(NAN);
-  for (size_t j = 0; j < n; ++j) c.median[j] = medianOf(values[j]);
+  for (size_t j = 0; j < n; ++j) c.median[j] = medianOfFinite(values[j]);
   return c;
 }
 
@@ -158,10 +155,8 @@ void RunningCentre::add(const FeatureVector& x) {
   c->set = set_;
   c->rows = seen_;
   c->median.fill(NAN);
-  for (size_t j = 0; j < values_.size(); ++j) {
-    std::vector<double> v = values_[j];
-    c->median[j] = medianOf(v);
-  }
+  // A median does not care about the order of what it is taken over: in place.
+  for (size_t j = 0; j < values_.size(); ++j) c->median[j] = medianOfFinite(values_[j]);
   centre_ = std::move(c);
   if (seen_ >= freeze_at_) values_.clear();
 }

@@ -102,13 +102,7 @@ Csv readCsv(const std::string& path) {
   return csv;
 }
 
-double median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }),
-          v.end());
-  if (v.empty()) return NAN;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
+double median(std::vector<double> v) { return medianOfFinite(v); }
 
 int parseLabel(const Csv& csv, const std::pair<int, std::vector<std::string>>& row, int col) {
   const double v = csv.number(row, col);
@@ -228,6 +222,14 @@ Table readLabelledRanges(const std::string& path) {
   std::getline(in, first);
   if (first.find("anchor_id") != std::string::npos) return readRangeFeatures(path);
   return readGhent(path);
+}
+
+double medianOfFinite(std::vector<double>& v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return NAN;
+  const auto mid = v.begin() + static_cast<long>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
 }
 
 }  // namespace uwbloc::nlos

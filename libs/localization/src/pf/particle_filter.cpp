@@ -197,10 +197,8 @@ void ParticleFilter::predict(const Eigen::Vector3d& delta) {
 
 void ParticleFilter::shift(const Eigen::Vector3d& delta) {
   for (size_t i = 0; i < set_.size(); ++i) {
-    const double c = std::cos(set_.theta[i]), s = std::sin(set_.theta[i]);
-    set_.x[i] += c * delta.x() - s * delta.y();
-    set_.y[i] += s * delta.x() + c * delta.y();
-    set_.theta[i] = wrapAngle(set_.theta[i] + delta.z());
+    const Pose2 p = composePose(Pose2(set_.x[i], set_.y[i], set_.theta[i]), delta);
+    set_.x[i] = p.x(), set_.y[i] = p.y(), set_.theta[i] = p.z();
   }
 }
 

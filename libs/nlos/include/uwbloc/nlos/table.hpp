@@ -66,6 +66,10 @@ Table readGhent(const std::string& path);
 /// the importer had a reference: true_range, error, nlos). Groups are anchor x 10 s of time.
 Table readRangeFeatures(const std::string& path);
 
+/// The median of the finite values of `v` (the upper one for an even count), NaN when there is
+/// none; `v` is reordered.
+double medianOfFinite(std::vector<double>& v);
+
 /// Throws DataError unless `path` is a regular file (a FIFO or a device would never end).
 void requireRegularFile(const std::string& path);
 
