@@ -8,7 +8,9 @@
 // tried against the scale (uwb-ekf 3.6x, 6.4x, 196x before; 0.91x now).
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "test_helpers.hpp"
 #include "uwbloc/evaluation/sensitivity.hpp"
@@ -48,4 +50,41 @@ TEST(Sensitivity, GraphDefaultsMatchTheTrueModel) {
   const auto json = nlohmann::json::parse(eval::formatSensitivityJson(cells));
   EXPECT_EQ(json.size(), 28u);
   EXPECT_NE(eval::formatSensitivityMarkdown(cells).find("| sigma 1.00 m |"), std::string::npos);
+}
+
+// uwb-pf learns from a 60 s batch with the odometry. A bias on one anchor of three is not what
+// the trial frees first (one bias common to every anchor); the biases per anchor tried next
+// stand because the ranges alone (graph-uwb over the same ranges) take them too. Measured with
+// seeds 1-2: 0.037 / 0.036 m (1.03x) at 0.5 m, 0.041 / 0.036 m (1.14x) at 1 m; with the common
+// bias alone 0.451 m (10.1x) and 0.880 m (19.7x).
+TEST(Sensitivity, ParticleFilterFindsABiasOnOneAnchor) {
+  eval::SensitivityOptions o;
+  o.scenario = std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/pfibas_room.ini";
+  o.work_dir = (test::scratchDir() / "sensitivity_pf").string();
+  o.seeds = 1;
+  o.methods = {"uwb-pf"};
+  o.conditions = {"bias 0.5 m on anchor 1", "bias 1.0 m on anchor 1"};
+  const auto cells = eval::runSensitivity(o, nullptr);
+  ASSERT_EQ(cells.size(), 2u);
+  for (const auto& c : cells) {
+    std::printf("[ SENSITIV ] %-14s %-28s defaults %.3f m, true model %.3f m (%.2f)\n",
+                c.method.c_str(), c.condition.c_str(), c.rmse_defaults, c.rmse_true, c.ratio());
+    EXPECT_LE(c.rmse_defaults, 1.25 * c.rmse_true) << c.condition;
+  }
+}
+
+TEST(Sensitivity, AConditionThatIsNotOneIsAnError) {
+  eval::SensitivityOptions o;
+  o.scenario = std::string(UWBLOC_SOURCE_DIR) + "/datasets/scenarios/pfibas_room.ini";
+  o.work_dir = (test::scratchDir() / "sensitivity_none").string();
+  o.conditions = {"bias 2 m on anchor 1"};
+  try {
+    eval::runSensitivity(o, nullptr);
+    FAIL() << "an unknown condition ran";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'bias 2 m on anchor 1'"), std::string::npos) << what;
+    EXPECT_NE(what.find("'bias 1.0 m on anchor 1'"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(std::filesystem::exists(o.work_dir));  // refused before anything was simulated
 }

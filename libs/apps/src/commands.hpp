@@ -138,7 +138,7 @@ class SensitivityCommand : public Command {
   int run() override;
 
  private:
-  std::string scenario_ = "pfibas_room.ini", out_ = "runs/sensitivity", methods_;
+  std::string scenario_ = "pfibas_room.ini", out_ = "runs/sensitivity", methods_, conditions_;
   int seeds_ = 3;
   double duration_ = 240.0;
 };

@@ -280,6 +280,9 @@ void SensitivityCommand::declare(CLI::App& parser) {
   cmd->add_option("--methods,-m", methods_,
                   "comma-separated method specs (default: graph-uwb-odom, uwb-ekf, uwb-pf, "
                   "fused-pf, pf-ibas)");
+  cmd->add_option("--conditions", conditions_,
+                  "comma-separated condition names as the table prints them, e.g. \"bias 0.5 m "
+                  "on anchor 1,sigma 0.30 m\" (default: every condition)");
 }
 
 int SensitivityCommand::run() {
@@ -289,6 +292,7 @@ int SensitivityCommand::run() {
   o.seeds = seeds_;
   o.duration = duration_;
   if (!methods_.empty()) o.methods = splitList(methods_);
+  if (!conditions_.empty()) o.conditions = splitList(conditions_);
   const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
   const auto cells = eval::runSensitivity(o, log);
   const std::string md = eval::formatSensitivityMarkdown(cells);

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <variant>
 
 #include "uwbloc/dataset/dataset.hpp"
@@ -92,11 +93,25 @@ std::vector<SensitivityCell> runSensitivity(const SensitivityOptions& options,
   base.duration = options.duration;
   std::vector<int> ids;
   for (const auto& a : base.anchors) ids.push_back(a.id);
+  const auto conditions = defaultConditions(ids);
+  for (const auto& name : options.conditions)
+    if (std::none_of(conditions.begin(), conditions.end(),
+                     [&](const SensitivityCondition& c) { return c.name == name; })) {
+      std::string known;
+      for (const auto& c : conditions) known += (known.empty() ? "'" : ", '") + c.name + "'";
+      throw std::invalid_argument("no sensitivity condition '" + name +
+                                  "'; the conditions: " + known);
+    }
   std::vector<SensitivityCell> out;
   int k = 0;
-  for (const auto& c : defaultConditions(ids)) {
+  for (const auto& c : conditions) {
+    // (numbered in the full list, whichever run)
     const std::string dir =
         (fs::path(options.work_dir) / ("condition_" + std::to_string(k++))).string();
+    if (!options.conditions.empty() &&
+        std::find(options.conditions.begin(), options.conditions.end(), c.name) ==
+            options.conditions.end())
+      continue;
     const data::Dataset injected = simulateCondition(base, c, true, dir + "/injected");
     const data::Dataset truth = simulateCondition(base, c, false, dir + "/true_model");
     for (const auto& m : options.methods) {

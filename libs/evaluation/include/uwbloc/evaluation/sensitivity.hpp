@@ -19,6 +19,9 @@ struct SensitivityOptions {
   double duration = 240.0;  ///< simulated span [s] (laps of the scenario's path)
   int seeds = 3;            ///< filter seeds 1..seeds per run (the data uses seed 1)
   std::vector<std::string> methods = {"graph-uwb-odom", "uwb-ekf", "uwb-pf", "fused-pf", "pf-ibas"};
+  /// Run only these conditions, by name ("bias 0.5 m on anchor 1"); empty: every one. A name
+  /// that is not a condition is an error (std::invalid_argument) before anything runs.
+  std::vector<std::string> conditions;
 };
 
 struct SensitivityCondition {

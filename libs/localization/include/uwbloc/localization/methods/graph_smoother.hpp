@@ -43,6 +43,9 @@ struct GraphSmootherParams {
   /// the path hides from the offsets)
   bool bias_trial = true;
   bool bias_trial_common = false;    ///< the trial frees one bias shared by every anchor
+  /// motion=odom: the trial's biases per anchor stand only when the ranges alone (graph-uwb
+  /// over the same ranges) take biases too; with bias_trial_common, tried after the common bias
+  bool bias_trial_confirm = false;
   BiasMode scale = BiasMode::kAuto;  ///< a range scale common to the anchors: z = (1 + s) d + b
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
   bool estimate_anchors = false;  ///< anchors' x, y with a prior
@@ -86,6 +89,11 @@ struct GraphSmootherParams {
     v("bias_trial_common", bias_trial_common,
       "the bias trial frees one bias common to every anchor instead of one per anchor (an "
       "anchor whose error drifts over the learning span cannot pass for it)");
+    v("bias_trial_confirm", bias_trial_confirm,
+      "motion=odom: the trial's biases per anchor stand only when a smoother of the ranges "
+      "alone (graph-uwb over the same ranges) takes biases as well (an error of the odometry "
+      "over the span cannot pass for them); with bias_trial_common, tried when the common bias "
+      "does not stand");
     v("scale", scale,
       "a range scale common to every anchor (z = (1 + s) d + bias): 0, 1 or auto (when the "
       "residuals grow with the distance, alike in both halves of the run)");
@@ -172,6 +180,9 @@ class GraphSmoother : public UwbEstimator {
   std::vector<PoseEstimate> trackPoses(const graph::RangeGraph& g,
                                        const std::vector<double>& times) const;
   bool constantVelocity() const { return params_.motion == GraphMotion::kConstantVelocity; }
+  /// bias_trial_confirm: whether graph-uwb (the ranges alone, constant-velocity prior, its own
+  /// bias trial) takes biases on this smoother's ranges of the primary tag.
+  bool rangesAloneTakeBiases() const;
   double first_t_ = 0.0;
   bool started_ = false;
 };
