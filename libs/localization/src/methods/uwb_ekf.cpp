@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <set>
 
 #include "uwbloc/localization/methods/uwb_multitag.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -51,7 +53,30 @@ void UwbEkfT<N>::reset() {
   initialised_ = false;
   quarantine_.clear();
   gated_in_a_row_ = 0;
+  recent_.clear();
   init_epochs_ = EpochBuffer(params_.epoch_window);
+}
+
+template <int N>
+bool UwbEkfT<N>::leansOnOneAnchor() const {
+  if (params_.max_gated <= 0 || recent_.size() < static_cast<size_t>(params_.max_gated))
+    return false;
+  const double tolerance = readmitTolerance(params_);
+  std::set<int> used, answered;
+  long refused = 0;
+  for (const auto& r : recent_) {
+    answered.insert(r.anchor);
+    if (r.used) {
+      used.insert(r.anchor);
+      continue;
+    }
+    // A refused range close to the state may be readmitted (the quarantine's tolerance): the
+    // filter can still come back to its anchor.
+    if (!(std::abs(r.innovation) > tolerance)) return false;
+    ++refused;
+  }
+  return used.size() <= 1 && answered.size() >= 2 &&
+         2 * refused >= static_cast<long>(recent_.size());
 }
 
 template <int N>
@@ -235,6 +260,7 @@ template <int N>
 std::optional<PoseEstimate> UwbEkfT<N>::step(const Event& event) {
   auto accepted = acceptRange(event);
   if (!accepted || !correctRange(*accepted, noise_)) return std::nullopt;
+  last_innovation_ = std::numeric_limits<double>::quiet_NaN();
 
   if (initialised_ && params_.reinit_std > 0.0 &&
       predictedPositionStd(p_.template topLeftCorner<4, 4>(), accepted->measurement.t - t_,
@@ -249,10 +275,17 @@ std::optional<PoseEstimate> UwbEkfT<N>::step(const Event& event) {
 
   const bool used = updateWithRange(*accepted);
   if constexpr (kMultitag) x_(kTheta) = wrapAngle(x_(kTheta));
-  // Every anchor disagreeing with the state for a while means the filter is lost; so does a
+  // Every anchor disagreeing with the state for a while means the filter is lost; so does one
+  // anchor agreeing while the others disagree beyond readmission (leansOnOneAnchor: a range
+  // pins the position to a circle only, and the quarantine never lets the others back; the MRPT
+  // demo's uwb-shkf ran 4 m along beacon 2's circle for 5 s, federated-ekf 9 m for 10 s), and a
   // state that rounding has made non-finite.
   gated_in_a_row_ = used ? 0 : gated_in_a_row_ + 1;
-  if (gated_in_a_row_ >= params_.max_gated || !x_.allFinite() || !p_.allFinite()) {
+  recent_.push_back({accepted->measurement.anchor_id, used, last_innovation_});
+  if (recent_.size() > static_cast<size_t>(std::max(params_.max_gated, 0))) recent_.pop_front();
+  const bool one_anchor = leansOnOneAnchor();
+  if (one_anchor) ++stats_.events["lost_on_one_anchor"];
+  if (gated_in_a_row_ >= params_.max_gated || one_anchor || !x_.allFinite() || !p_.allFinite()) {
     ++stats_.resets;
     reset();
     return std::nullopt;
@@ -295,6 +328,7 @@ bool RangeQuarantine::admit(const Link& link, double innovation, bool in_gate, i
 
 template <int N>
 bool UwbEkfT<N>::admit(const AcceptedRange& r, double innovation, bool in_gate) {
+  last_innovation_ = innovation;
   return quarantine_.admit(link(r), innovation, in_gate, params_.readmit, readmitTolerance(params_),
                            stats_);
 }

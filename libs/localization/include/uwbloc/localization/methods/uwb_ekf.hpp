@@ -37,6 +37,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <deque>
 #include <map>
 #include <memory>
 
@@ -90,7 +91,9 @@ struct UwbEkfParams {
     v("tau", velocity_tau, "velocity correlation time [s]; 0 = constant velocity");
     v("gate", gate, "chi-square gate on each range innovation (1 dof)");
     v("max_gated", max_gated,
-      "consecutive unused (gated or quarantined) ranges before re-initialising");
+      "consecutive unused (gated or quarantined) ranges before re-initialising; also "
+      "re-initialising when, over that many ranges, the filter used one anchor only and refused "
+      "at least half of them, each beyond readmit_tol (event lost_on_one_anchor)");
     v("readmit", readmit, "in-gate ranges in a row before a gated anchor is used again");
     v("readmit_tol", readmit_tol, "largest |innovation| that counts towards readmission [m]");
     v("init_residual", init_residual, "largest residual norm of the initial fix [m]");
@@ -239,6 +242,18 @@ class UwbEkfT : public UwbEstimator {
   HeadingFromMotion heading_;  ///< N = 4: the heading from the direction of motion
   bool initialised_ = false;
   int gated_in_a_row_ = 0;
+  /// The last max_gated ranges since the start: their anchor and whether the filter used them.
+  struct RecentRange {
+    int anchor;
+    bool used;
+    double innovation;  ///< [m]; NaN when the filter did not judge it
+  };
+  std::deque<RecentRange> recent_;
+  double last_innovation_ = 0.0;  ///< of the range being judged (admit)
+  /// Whether the last max_gated ranges were mostly refused and the used ones all came from one
+  /// anchor, while others answered: a position that one range pins to a circle, and the filter
+  /// lost on it.
+  bool leansOnOneAnchor() const;
   RangeQuarantine quarantine_;  ///< by link
   RangeNoiseModel noise_;       ///< the learnt bias and scale each range is corrected by
   LearningStart start_;
