@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <set>
+#include <optional>
 
 #include "uwbloc/localization/methods/uwb_multitag.hpp"
 #include "uwbloc/localization/registry.hpp"
@@ -62,12 +62,14 @@ bool UwbEkfT<N>::leansOnOneAnchor() const {
   if (params_.max_gated <= 0 || recent_.size() < static_cast<size_t>(params_.max_gated))
     return false;
   const double tolerance = readmitTolerance(params_);
-  std::set<int> used, answered;
+  std::optional<int> used;  // the one anchor used
+  bool others_answered = false;
   long refused = 0;
   for (const auto& r : recent_) {
-    answered.insert(r.anchor);
+    others_answered |= r.anchor != recent_.front().anchor;
     if (r.used) {
-      used.insert(r.anchor);
+      if (used && *used != r.anchor) return false;
+      used = r.anchor;
       continue;
     }
     // A refused range close to the state may be readmitted (the quarantine's tolerance): the
@@ -75,8 +77,7 @@ bool UwbEkfT<N>::leansOnOneAnchor() const {
     if (!(std::abs(r.innovation) > tolerance)) return false;
     ++refused;
   }
-  return used.size() <= 1 && answered.size() >= 2 &&
-         2 * refused >= static_cast<long>(recent_.size());
+  return others_answered && 2 * refused >= static_cast<long>(recent_.size());
 }
 
 template <int N>
