@@ -226,6 +226,116 @@ TEST(RangeFilters, ReInitialiseWhenOneAnchorAloneStillAgrees) {
   }
 }
 
+namespace {
+// Anchors A (0, 0) and B (8, 0), C (4, 7). The tag walks from (4, 3) towards the line AB, turns
+// back on it at t_turn and walks back to (4, 3), while C's ranges read `c_error` long from
+// 8 s to 20 s, or are missing without one (then true). Ranges at 10 Hz per anchor, 5 cm noise.
+data::Dataset bounceOffTheLine(std::optional<double> c_error, double t_turn) {
+  data::Dataset ds;
+  ds.name = "bounce_off_ab";
+  ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  const double duration = 50.0, v = 0.5, t_go = 10.0;
+  for (int k = 0; k * 0.1 <= duration; ++k) {
+    const double t = 0.1 * k;
+    const double walked = std::clamp(t - t_go, 0.0, 2.0 * (t_turn - t_go));
+    const double y = 3.0 - v * std::min(walked, 2.0 * (t_turn - t_go) - walked);
+    const Eigen::Vector2d at(4.0, y);
+    ds.ground_truth.push_back({t, Eigen::Vector3d(at.x(), at.y(), 0.0)});
+    for (size_t a = 0; a < ds.anchors.size(); ++a) {
+      uwb::Range r;
+      r.t = t + 0.02 * static_cast<double>(a);
+      r.anchor_id = ds.anchors[a].id;
+      r.range = (Eigen::Vector3d(at.x(), at.y(), 1.0) - ds.anchors[a].position).norm() + noise(rng);
+      if (r.anchor_id == 3 && t >= 8.0 && t < 20.0) {
+        if (!c_error) continue;
+        r.range += *c_error;
+      }
+      r.tag_on_robot = Eigen::Vector3d(0.0, 0.0, 1.0);
+      ds.events.emplace_back(r);
+    }
+  }
+  ds.start_time = 0.0;
+  ds.end_time = duration + 0.06;
+  return ds;
+}
+}  // namespace
+
+// Two anchors fix a position up to its mirror image across their line. The tag of
+// bounceOffTheLine walks onto the line AB and back (at 0.5 m/s, turning at 15.9 s, 5 cm short of
+// the line) while C's ranges read 3 m long and are refused: A's and B's ranges fit the walk on
+// across the line as well as the walk back, and the constant-velocity filters walk on, to the
+// mirror side. When C's ranges come back true at 20 s they are 5 m shorter than predicted,
+// refused for good: without the rule the filters stay on the mirror side to the end (all four
+// 6.0 m off at 50 s). The rule (mirrored_across_two_anchors) reflects them across AB after
+// three such ranges: within 0.2 m (held 5 s) of the truth 0.2 s after C comes back.
+TEST(RangeFilters, CrossBackWhenTheThirdAnchorSaysTheMirror) {
+  const data::Dataset ds = bounceOffTheLine(std::nullopt, 15.9);
+  for (const std::string m : {"uwb-ekf", "uwb-ckf", "uwb-shkf", "federated-ekf"}) {
+    const auto run = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1);
+    const auto back = test::recoveryTime(ds, run.trajectory, 20.0, 0.2, 5.0);
+    ASSERT_GT(run.trajectory.size(), 10u) << m;
+    const auto& last = run.trajectory[run.trajectory.size() - 10];  // within the reference
+    const auto gt = eval::interpolateGroundTruth(ds.ground_truth, last.t, 1.0);
+    ASSERT_TRUE(gt.has_value()) << m;
+    std::printf(
+        "[ MIRROR   ] %-13s within 0.2 m after %.1f s (mirrored %zu times), %.2f m off at %.0f s\n",
+        m.c_str(), back.value_or(-1.0), run.statistics.events.count("mirrored_across_two_anchors"),
+        (last.pose.head<2>() - gt->head<2>()).norm(), last.t);
+    EXPECT_GE(run.statistics.events.count("mirrored_across_two_anchors"), 1u) << m;
+    ASSERT_TRUE(back.has_value()) << m << " never came back";
+    EXPECT_LT(*back, 2.0) << m;
+  }
+}
+
+// What the rule must leave alone: ranges of C that read what the mirror of the tag's place
+// would give, for 10 s (15-25 s), the tag standing still.
+// (a) At (4, 0.6), on C's side of AB and 0.6 m from it: C's ranges read 1.2 m long, as NLOS
+//     reads, and the filter's position std across AB (A and B alone) reaches 0.24 m, so the line
+//     is within its 3 sigma. Long ranges never pull a filter across: the reflection across a
+//     line on C's far side is farther from C.
+// (b) At (4, -3), across AB from C: C's ranges read 6 m short. The filter has not come near the
+//     line since C was last used, so nothing can have put it on the wrong side. (The MRPT demo's
+//     beacon 1 read its mirror's distance three ranges in a row at 73 s and 294 s, and every
+//     range filter jumped 6-10 m before the rule asked for the line.)
+TEST(RangeFilters, TheMirrorRuleLeavesLongRangesAndFarLinesAlone) {
+  for (const Eigen::Vector2d at : {Eigen::Vector2d(4.0, 0.6), Eigen::Vector2d(4.0, -3.0)}) {
+    data::Dataset ds;
+    ds.name = "mirror_shaped_outliers";
+    ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> noise(0.0, 0.05);
+    const Eigen::Vector2d mirror(at.x(), -at.y());
+    for (int k = 0; k * 0.1 <= 40.0; ++k) {
+      const double t = 0.1 * k;
+      ds.ground_truth.push_back({t, Eigen::Vector3d(at.x(), at.y(), 0.0)});
+      for (size_t a = 0; a < ds.anchors.size(); ++a) {
+        uwb::Range r;
+        r.t = t + 0.02 * static_cast<double>(a);
+        r.anchor_id = ds.anchors[a].id;
+        const Eigen::Vector2d from = r.anchor_id == 3 && t >= 15.0 && t < 25.0 ? mirror : at;
+        r.range =
+            (Eigen::Vector3d(from.x(), from.y(), 1.0) - ds.anchors[a].position).norm() + noise(rng);
+        r.tag_on_robot = Eigen::Vector3d(0.0, 0.0, 1.0);
+        ds.events.emplace_back(r);
+      }
+    }
+    ds.start_time = 0.0;
+    ds.end_time = 40.06;
+    for (const std::string m : {"uwb-ekf", "uwb-ckf", "uwb-shkf", "federated-ekf"}) {
+      const auto run = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1);
+      const auto errors = eval::associate(run.trajectory, ds.ground_truth);
+      const auto metrics = eval::computeMetrics(errors, run.trajectory, ds.ground_truth);
+      std::printf("[ MIRROR   ] %-13s at (%.1f, %.1f): rmse_2d %.3f m, mirrored %zu times\n",
+                  m.c_str(), at.x(), at.y(), metrics.rmse_2d,
+                  run.statistics.events.count("mirrored_across_two_anchors"));
+      EXPECT_EQ(run.statistics.events.count("mirrored_across_two_anchors"), 0u) << m;
+      EXPECT_LT(metrics.rmse_2d, 0.2) << m;
+    }
+  }
+}
+
 // sigma=auto: the graph's variance-component estimate finds the simulated range noise, and
 // bias=auto stays off without a bias.
 TEST(SyntheticLoop, GraphEstimatesTheRangeNoise) {

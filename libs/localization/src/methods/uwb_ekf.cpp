@@ -54,6 +54,8 @@ void UwbEkfT<N>::reset() {
   quarantine_.clear();
   gated_in_a_row_ = 0;
   recent_.clear();
+  for (auto& l : lines_) l.near = false;
+  mirror_agreed_ = 0;
   init_epochs_ = EpochBuffer(params_.epoch_window);
 }
 
@@ -291,8 +293,109 @@ std::optional<PoseEstimate> UwbEkfT<N>::step(const Event& event) {
     reset();
     return std::nullopt;
   }
+  if (used) {
+    trackNearLines(accepted->measurement.anchor_id, accepted->anchor.template head<2>());
+  } else if (crossToTheMirror(*accepted)) {
+    ++stats_.events["mirrored_across_two_anchors"];
+  }
   if constexpr (!kMultitag) heading_.update(x_.template tail<2>());
   return output(accepted->measurement.tag_on_robot);
+}
+
+template <int N>
+void UwbEkfT<N>::trackNearLines(int anchor, const Eigen::Vector2d& anchor_xy) {
+  if constexpr (kMultitag) {
+    (void)anchor;
+    (void)anchor_xy;
+  } else {
+    if (anchor_xy_.emplace(anchor, anchor_xy).second) {
+      for (const auto& [other, xy] : anchor_xy_) {
+        const Eigen::Vector2d along = xy - anchor_xy;
+        if (!(along.norm() > 1e-6)) continue;
+        const Eigen::Vector2d u = along.normalized();
+        AnchorLine l;
+        l.a = std::min(anchor, other);
+        l.b = std::max(anchor, other);
+        l.point = anchor_xy;
+        l.normal = Eigen::Vector2d(-u.y(), u.x());
+        l.m = 2.0 * u * u.transpose() - Eigen::Matrix2d::Identity();
+        l.c = anchor_xy - l.m * anchor_xy;
+        l.angle = std::atan2(u.y(), u.x());
+        lines_.push_back(l);
+      }
+    }
+    const Eigen::Vector2d p = x_.template head<2>();
+    const Eigen::Matrix2d pp = p_.template topLeftCorner<2, 2>();
+    for (auto& l : lines_) {
+      // A range of an anchor off a line tells the line's two sides apart.
+      if (l.a != anchor && l.b != anchor) l.near = false;
+      const double d = l.normal.dot(p - l.point);
+      if (d * d <= 9.0 * l.normal.dot(pp * l.normal)) l.near = true;
+    }
+  }
+}
+
+// Two anchors fix the tag's position only up to its mirror image across the line through them;
+// a third anchor tells the two apart. A filter whose state comes within its uncertainty of that
+// line while only those two anchors are used can leave it on the wrong side, and then it keeps
+// the two anchors' ranges and refuses the third's for good: the quarantine readmits only ranges
+// close to the state (the MRPT demo's federated-ekf, beacon 1 refused for its gross errors,
+// crossed the line of beacons 2 and 3 at 305-310 s with a position std of 1.4 m across it, and
+// ran 9 m off on the mirror side to the end, refusing beacon 1's good ranges from 320 s on). So
+// when
+//   - the last max_gated ranges used exactly two anchors A and B,
+//   - the state came within 3 sigma of the line AB since an anchor off it was last used,
+//   - and `readmit` ranges in a row of another anchor C were refused, each shorter than
+//     predicted by more than readmit_tol and within the gate at the state reflected across AB
+//     (the range's own variance: the reflection must explain it, not the state's spread),
+// the filter moves to that reflection (position and velocity, covariance with them) and lets C
+// back. Only short ranges count: NLOS lengthens a range, and the reflection across a line on C's
+// far side is farther from C. N = 6 (several tags) is left alone: the tags' geometry tells the
+// sides apart.
+template <int N>
+bool UwbEkfT<N>::crossToTheMirror(const AcceptedRange& r) {
+  if constexpr (kMultitag) {
+    (void)r;
+    return false;
+  } else {
+    const auto fail = [this] {
+      mirror_agreed_ = 0;
+      return false;
+    };
+    const int c = r.measurement.anchor_id;
+    if (!(last_innovation_ < -readmitTolerance(params_)) ||
+        recent_.size() < static_cast<size_t>(std::max(params_.max_gated, 1)))
+      return fail();
+    std::optional<int> a, b;  // the two anchors used over the window, C not among them
+    for (const auto& e : recent_) {
+      if (!e.used || e.anchor == a || e.anchor == b) continue;
+      if (e.anchor == c || b) return fail();
+      (a ? b : a) = e.anchor;
+    }
+    if (!b) return fail();
+    if (*a > *b) std::swap(*a, *b);
+    const auto l = std::find_if(lines_.begin(), lines_.end(),
+                                [&](const AnchorLine& x) { return x.a == *a && x.b == *b; });
+    if (l == lines_.end() || !l->near) return fail();
+    Covariance t = Covariance::Identity();
+    t.template topLeftCorner<2, 2>() = l->m;
+    t.template block<2, 2>(2, 2) = l->m;
+    State xm = t * x_;
+    xm.template head<2>() += l->c;
+    const double y = r.measurement.range - rangeModel(xm, r);
+    if (!uwb::ChiSquareGate(params_.gate).acceptSquared(y * y / rangeVariance(r))) return fail();
+    if (++mirror_agreed_ < std::max(params_.readmit, 1)) return false;
+    x_ = xm;
+    p_ = t * p_ * t.transpose();
+    heading_.setHeading(wrapAngle(2.0 * l->angle - heading_.heading()));
+    quarantine_.clear();
+    recent_.clear();
+    for (auto& x : lines_) x.near = false;
+    gated_in_a_row_ = 0;
+    mirror_agreed_ = 0;
+    onStart();
+    return true;
+  }
 }
 
 template <int N>

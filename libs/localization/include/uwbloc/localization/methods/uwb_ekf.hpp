@@ -254,6 +254,25 @@ class UwbEkfT : public UwbEstimator {
   /// anchor, while others answered: a position that one range pins to a circle, and the filter
   /// lost on it.
   bool leansOnOneAnchor() const;
+  /// N = 4: whether the filter crossed to the mirror image of its position across the line
+  /// through the two anchors it used, on the evidence of a third that it refused (the rule is at
+  /// its definition); the state, the quarantine and onStart() follow when it did.
+  bool crossToTheMirror(const AcceptedRange& r);
+  /// N = 4: after a used range of `anchor`, which anchor pairs' lines the state has come near
+  /// since an anchor off the line was last used (crossToTheMirror).
+  void trackNearLines(int anchor, const Eigen::Vector2d& anchor_xy);
+  /// The line through two anchors (ids a < b) and the reflection across it, p -> m p + c.
+  struct AnchorLine {
+    int a, b;
+    Eigen::Vector2d point, normal;  ///< a's position, the unit normal
+    Eigen::Matrix2d m;
+    Eigen::Vector2d c;
+    double angle;       ///< of the line [rad]
+    bool near = false;  ///< the state came within 3 sigma of it since an anchor off it was used
+  };
+  std::map<int, Eigen::Vector2d> anchor_xy_;  ///< every anchor used since the start
+  std::vector<AnchorLine> lines_;             ///< one per pair of anchor_xy_
+  int mirror_agreed_ = 0;                     ///< refused ranges in a row the mirror explains
   RangeQuarantine quarantine_;  ///< by link
   RangeNoiseModel noise_;       ///< the learnt bias and scale each range is corrected by
   LearningStart start_;
