@@ -300,7 +300,7 @@ TEST(RangeFilters, CrossBackWhenTheThirdAnchorSaysTheMirror) {
 //     beacon 1 read its mirror's distance three ranges in a row at 73 s and 294 s, and every
 //     range filter jumped 6-10 m before the rule asked for the line.)
 TEST(RangeFilters, TheMirrorRuleLeavesLongRangesAndFarLinesAlone) {
-  for (const Eigen::Vector2d at : {Eigen::Vector2d(4.0, 0.6), Eigen::Vector2d(4.0, -3.0)}) {
+  for (const Eigen::Vector2d& at : {Eigen::Vector2d(4.0, 0.6), Eigen::Vector2d(4.0, -3.0)}) {
     data::Dataset ds;
     ds.name = "mirror_shaped_outliers";
     ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};

@@ -265,10 +265,10 @@ int SweepCommand::run() {
         throw data::InputError(datasets[d] +
                                ": no such dataset manifest (looked up as given, in "
                                "the data directory and in datasets/)");
-      char dlabel[16];
+      char dlabel[32];
       std::snprintf(dlabel, sizeof dlabel, "d%02zu_", d);
       for (size_t m = 0; m < methods.size(); ++m) {
-        char mlabel[16];
+        char mlabel[32];
         std::snprintf(mlabel, sizeof mlabel, "m%03zu_", m);
         for (int s = 0; s < seeds_; ++s) {
           const uint64_t seed = seed_ + static_cast<uint64_t>(s);

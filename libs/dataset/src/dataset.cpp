@@ -147,6 +147,7 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
                             " messages rejected at reading (" + reason.substr(9) + ")");
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
+  if (auto w = referenceBeyondRecordingWarning(ds)) ds.warnings.push_back(*w);
   return ds;
 }
 
@@ -186,6 +187,30 @@ std::optional<std::string> referenceCoverageWarning(const Dataset& ds) {
   std::snprintf(buf, sizeof buf,
                 "%s: the reference (%.3f..%.3f s) covers %.0f %% of the recording (%.3f..%.3f s)",
                 ds.manifest.ground_truth.c_str(), g0, g1, 100.0 * overlap / span, t0, t1);
+  return std::string(buf);
+}
+
+double referenceReach(const Dataset& ds, double tolerance) {
+  if (ds.ground_truth.empty()) return 1.0;
+  const auto inside =
+      std::count_if(ds.ground_truth.begin(), ds.ground_truth.end(), [&](const TimedPose& g) {
+        return g.t >= ds.start_time - tolerance && g.t <= ds.end_time + tolerance;
+      });
+  return static_cast<double>(inside) / static_cast<double>(ds.ground_truth.size());
+}
+
+std::optional<std::string> referenceBeyondRecordingWarning(const Dataset& ds) {
+  if (ds.ground_truth.empty() || ds.events.empty()) return std::nullopt;
+  const double reach = referenceReach(ds);
+  if (reach >= 0.95) return std::nullopt;
+  const double before = std::max(0.0, ds.start_time - ds.ground_truth.front().t);
+  const double after = std::max(0.0, ds.ground_truth.back().t - ds.end_time);
+  char buf[360];
+  std::snprintf(buf, sizeof buf,
+                "%s: the reference runs %.1f s before the recording's first measurement and "
+                "%.1f s after its last; %.0f %% of its samples lie beyond them, so no method can "
+                "cover more than %.2f of it",
+                ds.manifest.ground_truth.c_str(), before, after, 100.0 * (1.0 - reach), reach);
   return std::string(buf);
 }
 

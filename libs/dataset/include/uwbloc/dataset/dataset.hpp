@@ -51,6 +51,17 @@ std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& e
 /// explanation naming both spans; nothing otherwise (nor when there is no reference).
 std::optional<std::string> referenceCoverageWarning(const Dataset& ds);
 
+/// The fraction of the reference's samples within `tolerance` [s] of the recording's span
+/// (start_time..end_time): the most coverage any method can reach, since nothing is measured
+/// beyond it. 1 without a reference.
+double referenceReach(const Dataset& ds, double tolerance = 1.0);
+
+/// When the reference outlasts the recording's measurements so that under 95 % of its samples
+/// lie within them (referenceReach), a one-line explanation giving how long it runs before the
+/// first and after the last, and the coverage no method can exceed; nothing otherwise. (Under
+/// half of the recording covered by the reference is referenceCoverageWarning's.)
+std::optional<std::string> referenceBeyondRecordingWarning(const Dataset& ds);
+
 /// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per
 /// range, in the rawlog's order, and when the importer had a reference three more columns,
 /// "true_range,error,nlos" (the distance from the reference, estimated - true, and the label

@@ -36,6 +36,9 @@ struct BenchmarkCell {
   std::string variant;  ///< "defaults" or "manifest facts" (the manifest's measured [uwb] sigma)
   std::string method;
   double mean_rmse = 0.0, worst_rmse = 0.0, coverage = 0.0;
+  /// The most coverage any method can reach on the dataset: under 1 where the reference outlasts
+  /// the recording's measurements (data::referenceReach).
+  double coverage_max = 1.0;
   std::string flag;  ///< resultFlag()
 };
 
