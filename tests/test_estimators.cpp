@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
+#include <optional>
 #include <stdexcept>
 
 #include "kidnap.hpp"
@@ -183,6 +185,41 @@ TEST(SyntheticLoop, UwbMethodsConverge) {
   }
 }
 
+namespace {
+/// Anchors 1 (0, 0), 2 (8, 0) and 3 (4, 7) at 1 m; the tag at 1 m, at `at(t)` over [0, duration]
+/// (the reference at 10 Hz); each anchor's range 10 times a second (anchor k 0.02 k s after the
+/// tick), the distance from `from(t, anchor id)` (default: the tag's place) plus 5 cm noise,
+/// nothing when that gives no place.
+data::Dataset threeAnchorWalk(
+    const char* name, double duration, uint64_t seed,
+    const std::function<Eigen::Vector2d(double)>& at,
+    const std::function<std::optional<Eigen::Vector2d>(double, int)>& from = nullptr) {
+  data::Dataset ds;
+  ds.name = name;
+  ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  for (int k = 0; k * 0.1 <= duration; ++k) {
+    const double t = 0.1 * k;
+    const Eigen::Vector2d tag = at(t);
+    ds.ground_truth.push_back({t, Eigen::Vector3d(tag.x(), tag.y(), 0.0)});
+    for (size_t a = 0; a < ds.anchors.size(); ++a) {
+      const auto p = from ? from(t, ds.anchors[a].id) : std::optional<Eigen::Vector2d>(tag);
+      if (!p) continue;
+      uwb::Range r;
+      r.t = t + 0.02 * static_cast<double>(a);
+      r.anchor_id = ds.anchors[a].id;
+      r.range = (Eigen::Vector3d(p->x(), p->y(), 1.0) - ds.anchors[a].position).norm() + noise(rng);
+      r.tag_on_robot = Eigen::Vector3d(0.0, 0.0, 1.0);
+      ds.events.emplace_back(r);
+    }
+  }
+  ds.start_time = 0.0;
+  ds.end_time = duration + 0.06;
+  return ds;
+}
+}  // namespace
+
 // A tag still at P for 20 s, then at Q, which is as far from anchor 2 as P is (ranges at 10 Hz,
 // 5 cm noise): a filter at P finds anchor 2 agreeing and anchors 1 and 3 off by 2 and 3 m. It
 // uses anchor 2 every third range, so "12 unused ranges in a row" never says it is lost, and the
@@ -193,28 +230,10 @@ TEST(SyntheticLoop, UwbMethodsConverge) {
 // never (uwb-shkf) without it. On the MRPT demo uwb-shkf ran 4 m along beacon 2's circle for
 // 5 s (0.572 -> 0.379 m) and federated-ekf 9 m for 10 s (1.383 -> 1.069 m).
 TEST(RangeFilters, ReInitialiseWhenOneAnchorAloneStillAgrees) {
-  data::Dataset ds;
-  ds.name = "one_anchor_agrees";
-  ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};
   const Eigen::Vector2d p(4, 3), q(3, 0);  // |P - A2| = |Q - A2| = 5 m
-  std::mt19937_64 rng(3);
-  std::normal_distribution<double> noise(0.0, 0.05);
-  const double duration = 60.0, t_move = 20.0;
-  for (int k = 0; k * 0.1 <= duration; ++k) {
-    const double t = 0.1 * k;
-    const Eigen::Vector2d at = t < t_move ? p : q;
-    ds.ground_truth.push_back({t, Eigen::Vector3d(at.x(), at.y(), 0.0)});
-    for (size_t a = 0; a < ds.anchors.size(); ++a) {
-      uwb::Range r;
-      r.t = t + 0.02 * static_cast<double>(a);
-      r.anchor_id = ds.anchors[a].id;
-      r.range = (Eigen::Vector3d(at.x(), at.y(), 1.0) - ds.anchors[a].position).norm() + noise(rng);
-      r.tag_on_robot = Eigen::Vector3d(0.0, 0.0, 1.0);
-      ds.events.emplace_back(r);
-    }
-  }
-  ds.start_time = 0.0;
-  ds.end_time = duration + 0.06;
+  const double t_move = 20.0;
+  const data::Dataset ds =
+      threeAnchorWalk("one_anchor_agrees", 60.0, 3, [&](double t) { return t < t_move ? p : q; });
   for (const std::string m : {"uwb-ekf", "uwb-ckf", "uwb-shkf", "uwb-iahckf"}) {
     const auto run = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1);
     const auto back = test::recoveryTime(ds, run.trajectory, t_move, 0.2, 5.0);
@@ -227,51 +246,33 @@ TEST(RangeFilters, ReInitialiseWhenOneAnchorAloneStillAgrees) {
 }
 
 namespace {
-// Anchors A (0, 0) and B (8, 0), C (4, 7). The tag walks from (4, 3) towards the line AB, turns
-// back on it at t_turn and walks back to (4, 3), while C's ranges read `c_error` long from
-// 8 s to 20 s, or are missing without one (then true). Ranges at 10 Hz per anchor, 5 cm noise.
-data::Dataset bounceOffTheLine(std::optional<double> c_error, double t_turn) {
-  data::Dataset ds;
-  ds.name = "bounce_off_ab";
-  ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> noise(0.0, 0.05);
-  const double duration = 50.0, v = 0.5, t_go = 10.0;
-  for (int k = 0; k * 0.1 <= duration; ++k) {
-    const double t = 0.1 * k;
+// The tag of threeAnchorWalk walks from (4, 3) towards the line AB (anchors 1 and 2) at 0.5 m/s,
+// turns back on it at t_turn and walks back to (4, 3), while C's (anchor 3's) ranges are
+// missing from 8 s to 20 s.
+data::Dataset bounceOffTheLine(double t_turn) {
+  const double v = 0.5, t_go = 10.0;
+  const auto path = [=](double t) {
     const double walked = std::clamp(t - t_go, 0.0, 2.0 * (t_turn - t_go));
-    const double y = 3.0 - v * std::min(walked, 2.0 * (t_turn - t_go) - walked);
-    const Eigen::Vector2d at(4.0, y);
-    ds.ground_truth.push_back({t, Eigen::Vector3d(at.x(), at.y(), 0.0)});
-    for (size_t a = 0; a < ds.anchors.size(); ++a) {
-      uwb::Range r;
-      r.t = t + 0.02 * static_cast<double>(a);
-      r.anchor_id = ds.anchors[a].id;
-      r.range = (Eigen::Vector3d(at.x(), at.y(), 1.0) - ds.anchors[a].position).norm() + noise(rng);
-      if (r.anchor_id == 3 && t >= 8.0 && t < 20.0) {
-        if (!c_error) continue;
-        r.range += *c_error;
-      }
-      r.tag_on_robot = Eigen::Vector3d(0.0, 0.0, 1.0);
-      ds.events.emplace_back(r);
-    }
-  }
-  ds.start_time = 0.0;
-  ds.end_time = duration + 0.06;
-  return ds;
+    return Eigen::Vector2d(4.0, 3.0 - v * std::min(walked, 2.0 * (t_turn - t_go) - walked));
+  };
+  return threeAnchorWalk("bounce_off_ab", 50.0, 5, path,
+                         [=](double t, int anchor) -> std::optional<Eigen::Vector2d> {
+                           if (anchor == 3 && t >= 8.0 && t < 20.0) return std::nullopt;
+                           return path(t);
+                         });
 }
 }  // namespace
 
 // Two anchors fix a position up to its mirror image across their line. The tag of
 // bounceOffTheLine walks onto the line AB and back (at 0.5 m/s, turning at 15.9 s, 5 cm short of
-// the line) while C's ranges read 3 m long and are refused: A's and B's ranges fit the walk on
+// the line) while C's ranges are missing: A's and B's ranges fit the walk on
 // across the line as well as the walk back, and the constant-velocity filters walk on, to the
 // mirror side. When C's ranges come back true at 20 s they are 5 m shorter than predicted,
 // refused for good: without the rule the filters stay on the mirror side to the end (all four
 // 6.0 m off at 50 s). The rule (mirrored_across_two_anchors) reflects them across AB after
 // three such ranges: within 0.2 m (held 5 s) of the truth 0.2 s after C comes back.
 TEST(RangeFilters, CrossBackWhenTheThirdAnchorSaysTheMirror) {
-  const data::Dataset ds = bounceOffTheLine(std::nullopt, 15.9);
+  const data::Dataset ds = bounceOffTheLine(15.9);
   for (const std::string m : {"uwb-ekf", "uwb-ckf", "uwb-shkf", "federated-ekf"}) {
     const auto run = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1);
     const auto back = test::recoveryTime(ds, run.trajectory, 20.0, 0.2, 5.0);
@@ -301,28 +302,12 @@ TEST(RangeFilters, CrossBackWhenTheThirdAnchorSaysTheMirror) {
 //     range filter jumped 6-10 m before the rule asked for the line.)
 TEST(RangeFilters, TheMirrorRuleLeavesLongRangesAndFarLinesAlone) {
   for (const Eigen::Vector2d& at : {Eigen::Vector2d(4.0, 0.6), Eigen::Vector2d(4.0, -3.0)}) {
-    data::Dataset ds;
-    ds.name = "mirror_shaped_outliers";
-    ds.anchors = {{1, {0, 0, 1.0}}, {2, {8, 0, 1.0}}, {3, {4, 7, 1.0}}};
-    std::mt19937_64 rng(7);
-    std::normal_distribution<double> noise(0.0, 0.05);
     const Eigen::Vector2d mirror(at.x(), -at.y());
-    for (int k = 0; k * 0.1 <= 40.0; ++k) {
-      const double t = 0.1 * k;
-      ds.ground_truth.push_back({t, Eigen::Vector3d(at.x(), at.y(), 0.0)});
-      for (size_t a = 0; a < ds.anchors.size(); ++a) {
-        uwb::Range r;
-        r.t = t + 0.02 * static_cast<double>(a);
-        r.anchor_id = ds.anchors[a].id;
-        const Eigen::Vector2d from = r.anchor_id == 3 && t >= 15.0 && t < 25.0 ? mirror : at;
-        r.range =
-            (Eigen::Vector3d(from.x(), from.y(), 1.0) - ds.anchors[a].position).norm() + noise(rng);
-        r.tag_on_robot = Eigen::Vector3d(0.0, 0.0, 1.0);
-        ds.events.emplace_back(r);
-      }
-    }
-    ds.start_time = 0.0;
-    ds.end_time = 40.06;
+    const data::Dataset ds = threeAnchorWalk(
+        "mirror_shaped_outliers", 40.0, 7, [&](double) { return at; },
+        [&](double t, int anchor) -> std::optional<Eigen::Vector2d> {
+          return anchor == 3 && t >= 15.0 && t < 25.0 ? mirror : at;
+        });
     for (const std::string m : {"uwb-ekf", "uwb-ckf", "uwb-shkf", "federated-ekf"}) {
       const auto run = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1);
       const auto errors = eval::associate(run.trajectory, ds.ground_truth);

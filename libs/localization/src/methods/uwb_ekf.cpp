@@ -345,7 +345,7 @@ void UwbEkfT<N>::trackNearLines(int anchor, const Eigen::Vector2d& anchor_xy) {
 // when
 //   - the last max_gated ranges used exactly two anchors A and B,
 //   - the state came within 3 sigma of the line AB since an anchor off it was last used,
-//   - and `readmit` ranges in a row of another anchor C were refused, each shorter than
+//   - and the last `readmit` refused ranges, of anchors off AB (C), were each shorter than
 //     predicted by more than readmit_tol and within the gate at the state reflected across AB
 //     (the range's own variance: the reflection must explain it, not the state's spread),
 // the filter moves to that reflection (position and velocity, covariance with them) and lets C
