@@ -58,6 +58,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"gamma", 0, 1e6, false, "divergence bound (0: off)"},
       {"prior_steps", 0, 1e6, false, "steps (0: the first innovation replaces the start)"},
       {"r_floor", 0, 100, true, "[m]: keeps the estimated R positive definite"},
+      {"bias_max", 0, 1e6, false, "[m]"},
       {"gate", 0, 1e6, true, "chi-square threshold"},
       {"huber", 0, 1e3, true, "[std]"},
       {"accel_psd", 0, 1e6, true, "[m^2/s^3]"},

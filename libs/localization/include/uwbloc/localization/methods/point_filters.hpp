@@ -77,6 +77,7 @@ struct UwbIahCkfParams {
   double nlos_threshold = 0.24; ///< |innovation| below which a range is never down-weighted [m]
   AutoDouble r_floor;           ///< smallest std of R̂ [m]; auto: half the range sigma
   bool bias = true;             ///< estimate each anchor's range bias r̂
+  AutoDouble bias_max;          ///< largest |r̂| [m]; auto: twice the range sigma
   AutoDouble prior_steps;       ///< the steps sigma^2 and r̂ = 0 count as (sageHusaStartStep)
   long priorSteps() const { return kalman::sageHusaStartStep(prior_steps.value, forgetting); }
 
@@ -84,6 +85,9 @@ struct UwbIahCkfParams {
   void visit(V&& v) {
     ckf.visit(v);
     v("bias", bias, "estimate each anchor's range bias (1) or not (0)");
+    v("bias_max", bias_max,
+      "largest |estimated bias| [m], or auto: twice sigma (the learning start removes a constant "
+      "bias before the filter runs; beyond, the estimate follows the filter's own error)");
     v("b", forgetting, "forgetting factor of the noise statistics, d_k = (1-b)/(1-b^(k+1))");
     v("k0", k0, "IGG-III: normalised innovations up to k0 keep R");
     v("k1", k1, "IGG-III: beyond k1 the range is dropped; between, R is inflated");
