@@ -174,6 +174,7 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
     }
     // "defaults": nothing from the manifest but what the recording is; "manifest facts": also
     // the range noise measured on it, when the manifest states one.
+    const double coverage_max = data::referenceReach(ds);
     std::vector<std::pair<std::string, std::optional<double>>> variants{{"defaults", std::nullopt}};
     if (ds.manifest.uwb_sigma) variants.emplace_back("manifest facts", ds.manifest.uwb_sigma);
     for (const auto& [variant, sigma] : variants) {
@@ -184,7 +185,7 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
         c.dataset = d.name;
         c.variant = variant;
         c.method = m;
-        c.coverage_max = data::referenceReach(ds);
+        c.coverage_max = coverage_max;
         try {
           const auto s = evaluateMethod(ds, m, o.seeds, 1);
           c.mean_rmse = s.metrics.rmse_2d;

@@ -312,16 +312,8 @@ void UwbEkfT<N>::trackNearLines(int anchor, const Eigen::Vector2d& anchor_xy) {
       for (const auto& [other, xy] : anchor_xy_) {
         const Eigen::Vector2d along = xy - anchor_xy;
         if (!(along.norm() > 1e-6)) continue;
-        const Eigen::Vector2d u = along.normalized();
-        AnchorLine l;
-        l.a = std::min(anchor, other);
-        l.b = std::max(anchor, other);
-        l.point = anchor_xy;
-        l.normal = Eigen::Vector2d(-u.y(), u.x());
-        l.m = 2.0 * u * u.transpose() - Eigen::Matrix2d::Identity();
-        l.c = anchor_xy - l.m * anchor_xy;
-        l.angle = std::atan2(u.y(), u.x());
-        lines_.push_back(l);
+        lines_.push_back(
+            {std::min(anchor, other), std::max(anchor, other), anchor_xy, along.normalized()});
       }
     }
     const Eigen::Vector2d p = x_.template head<2>();
@@ -329,8 +321,9 @@ void UwbEkfT<N>::trackNearLines(int anchor, const Eigen::Vector2d& anchor_xy) {
     for (auto& l : lines_) {
       // A range of an anchor off a line tells the line's two sides apart.
       if (l.a != anchor && l.b != anchor) l.near = false;
-      const double d = l.normal.dot(p - l.point);
-      if (d * d <= 9.0 * l.normal.dot(pp * l.normal)) l.near = true;
+      const Eigen::Vector2d n = l.normal();
+      const double d = n.dot(p - l.point);
+      if (d * d <= 9.0 * n.dot(pp * n)) l.near = true;
     }
   }
 }
@@ -377,17 +370,20 @@ bool UwbEkfT<N>::crossToTheMirror(const AcceptedRange& r) {
     const auto l = std::find_if(lines_.begin(), lines_.end(),
                                 [&](const AnchorLine& x) { return x.a == *a && x.b == *b; });
     if (l == lines_.end() || !l->near) return fail();
+    // The reflection across the line: p -> m (p - point) + point, velocities by m.
+    const Eigen::Matrix2d m = 2.0 * l->along * l->along.transpose() - Eigen::Matrix2d::Identity();
     Covariance t = Covariance::Identity();
-    t.template topLeftCorner<2, 2>() = l->m;
-    t.template block<2, 2>(2, 2) = l->m;
+    t.template topLeftCorner<2, 2>() = m;
+    t.template block<2, 2>(2, 2) = m;
     State xm = t * x_;
-    xm.template head<2>() += l->c;
+    xm.template head<2>() += l->point - m * l->point;
     const double y = r.measurement.range - rangeModel(xm, r);
     if (!uwb::ChiSquareGate(params_.gate).acceptSquared(y * y / rangeVariance(r))) return fail();
     if (++mirror_agreed_ < std::max(params_.readmit, 1)) return false;
     x_ = xm;
     p_ = t * p_ * t.transpose();
-    heading_.setHeading(wrapAngle(2.0 * l->angle - heading_.heading()));
+    heading_.setHeading(
+        wrapAngle(2.0 * std::atan2(l->along.y(), l->along.x()) - heading_.heading()));
     quarantine_.clear();
     recent_.clear();
     for (auto& x : lines_) x.near = false;

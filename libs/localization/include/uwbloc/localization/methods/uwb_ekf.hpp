@@ -261,14 +261,12 @@ class UwbEkfT : public UwbEstimator {
   /// N = 4: after a used range of `anchor`, which anchor pairs' lines the state has come near
   /// since an anchor off the line was last used (crossToTheMirror).
   void trackNearLines(int anchor, const Eigen::Vector2d& anchor_xy);
-  /// The line through two anchors (ids a < b) and the reflection across it, p -> m p + c.
+  /// The line through two anchors (ids a < b).
   struct AnchorLine {
     int a, b;
-    Eigen::Vector2d point, normal;  ///< a's position, the unit normal
-    Eigen::Matrix2d m;
-    Eigen::Vector2d c;
-    double angle;       ///< of the line [rad]
+    Eigen::Vector2d point, along;  ///< a's position, the unit direction
     bool near = false;  ///< the state came within 3 sigma of it since an anchor off it was used
+    Eigen::Vector2d normal() const { return {-along.y(), along.x()}; }
   };
   std::map<int, Eigen::Vector2d> anchor_xy_;  ///< every anchor used since the start
   std::vector<AnchorLine> lines_;             ///< one per pair of anchor_xy_
