@@ -1069,12 +1069,16 @@ uwb::Range rangeAt(double t, int anchor, double range) {
 
 // One uwb-shkf step by hand. Start at (0, 0) with P = diag(0.25, 0.25, 1, 1) (start_sigma 0.5);
 // a range of 5.5 m to the anchor at (3, 4) at the start time (no motion, Q = 0) predicts 5,
-// H = [-0.6 -0.8 0 0], e = 0.5. First statistic (d = 1): C_exp = C_win = e^2 = 0.25, beta 0,
-// fading 1, R = C - H P H^T = 0.25 - 0.25 = 0, kept at the model's sigma^2 = 0.01 while the
-// anchor's statistics hold fewer than n0 (10) innovations (above the floor (sigma / 2)^2). Then
-// S = 0.26, K = P H^T / S and the tag moves by K e = (-0.288462, -0.384615). With n0=1 the
-// first statistic already holds n0: R = 0 goes to the floor, 0.0025, and S = 0.2525. With
-// bias=1 the anchor's bias becomes d_0 e = 0.5.
+// H = [-0.6 -0.8 0 0], e = 0.5, H P H^T = 0.25. The update uses the anchor's R̂ so far, the
+// model's sigma^2 = 0.01: S = 0.26, K = P H^T / S, and the tag moves by
+// K e = (-0.288462, -0.384615). Then R̂ (d_0 = 1, beta 0):
+//   - from the residual (the default): ε = e - H K e = e R / S = 0.0192308, H P_k H^T =
+//     H P H^T R / S = 0.0096154, R̂ = ε^2 + H P_k H^T = 0.0099852 (sigma 0.0999260);
+//   - from the innovation (r_from=innovation, used in this update): C_exp = C_win = e^2 = 0.25,
+//     fading 1, R = C - H P H^T = 0, kept at the model's sigma^2 = 0.01 while the anchor's
+//     statistics hold fewer than n0 (10) innovations (above the floor (sigma / 2)^2); with n0=1
+//     the first statistic already holds n0: R = 0 goes to the floor, 0.0025, and S = 0.2525.
+// With bias=1 the anchor's bias becomes d_0 e = 0.5.
 TEST(Shkf, OneStepByHand) {
   loc::EstimatorContext ctx;
   ctx.anchors = {{1, {-3, 0, 0}}, {2, {3, 4, 0}}, {3, {3, -4, 0}}};
@@ -1096,24 +1100,79 @@ TEST(Shkf, OneStepByHand) {
         << event;
     EXPECT_NEAR(run.first->statistics().estimated_noise.at(2).sigma, sigma, 1e-12);
   };
-  check(step(""), 0.26, "r_kept_at_model_until_n0", 0.1);
-  check(step(",n0=1"), 0.2525, "r_kept_positive", 0.05);
+  const auto residual = step("");
+  EXPECT_NEAR(residual.second.pose.x(), 0.25 * -0.6 * 0.5 / 0.26, 1e-9);
+  EXPECT_NEAR(residual.second.pose.y(), 0.25 * -0.8 * 0.5 / 0.26, 1e-9);
+  const double eps = 0.5 * 0.01 / 0.26, hph = 0.25 * 0.01 / 0.26;
+  EXPECT_NEAR(residual.first->statistics().estimated_noise.at(2).sigma, std::sqrt(eps * eps + hph),
+              1e-12);
+  EXPECT_NEAR(residual.first->statistics().estimated_noise.at(2).sigma, 0.0999260, 1e-7);
+  EXPECT_EQ(residual.first->statistics().events.count("r_kept_positive"), 0u);
+  check(step(",r_from=innovation"), 0.26, "r_kept_at_model_until_n0", 0.1);
+  check(step(",r_from=innovation,n0=1"), 0.2525, "r_kept_positive", 0.05);
   // With the bias estimated, the first weight d_0 = 1 takes the whole innovation as the bias.
   EXPECT_NEAR(step(",bias=1").first->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
 }
 
-// Greenhouse R1 (38 s, 0.1 m noise with a 0.1 m bias): the first innovations of each anchor are
-// mostly the start's uncertainty, and R̂ = C - H P H^T read off them fell to its floor; the
-// overconfident filter then gated 612 ranges (3.93 m). Kept at the model's sigma^2 until n0
-// innovations, it scores 0.063 m.
+// uwb-shkf's R̂ on a tag walking at up to 0.3 m/s round three anchors, each anchor's range once a
+// second with 5 cm noise (the MRPT demo's rate), the model's sigma 5 cm. The process noise
+// (calib=0: q 0.1 m^2/s^3) is wider than this walk's (accelerations of 0.05 m/s^2), and over a
+// second H P H^T outgrows the ranges' noise. From the post-fit residual (the default) each anchor's
+// R̂ holds the ranges' noise (measured 0.046 / 0.045 / 0.043 m, never at the floor); from the
+// innovation, C - H P H^T, it is at its floor (sigma / 2) for 391 of the 603 ranges, and two
+// anchors end there.
+TEST(Shkf, TheResidualHoldsTheRangesNoiseWhereTheInnovationSitsAtTheFloor) {
+  const auto at = [](double t) {
+    const double w = 2.0 * M_PI * t / 40.0;
+    return Eigen::Vector2d(4.0 + 2.0 * std::sin(w), 2.5 + std::cos(w));
+  };
+  const data::Dataset ds = threeAnchorWalk("walk_round_three", 200.0, 7, at,
+                                           [&](double t, int) -> std::optional<Eigen::Vector2d> {
+                                             if (std::fmod(t + 1e-6, 1.0) > 0.05)
+                                               return std::nullopt;
+                                             return at(t);
+                                           });
+  const auto floored = [](const loc::EstimatorStatistics& s) {
+    return s.events.count("r_kept_positive") ? s.events.at("r_kept_positive") : 0;
+  };
+  const auto residual = eval::runMethod(ds, "uwb-shkf:sigma=0.05,calib=0", 1).statistics;
+  EXPECT_EQ(floored(residual), 0);
+  ASSERT_EQ(residual.estimated_noise.size(), 3u);
+  for (const auto& [id, noise] : residual.estimated_noise) {
+    std::printf("[ SHKF-R   ] anchor %d: sigma %.4f from the residual\n", id, noise.sigma);
+    EXPECT_NEAR(noise.sigma, 0.05, 0.0125) << id;
+  }
+  const auto innovation =
+      eval::runMethod(ds, "uwb-shkf:sigma=0.05,calib=0,r_from=innovation", 1).statistics;
+  std::printf("[ SHKF-R   ] from the innovation: at the floor %ld times\n",
+              static_cast<long>(floored(innovation)));
+  EXPECT_GT(floored(innovation), 150);
+  int at_floor = 0;
+  for (const auto& [id, noise] : innovation.estimated_noise) {
+    std::printf("[ SHKF-R   ] anchor %d: sigma %.4f from the innovation\n", id, noise.sigma);
+    at_floor += std::abs(noise.sigma - 0.025) < 1e-9;
+  }
+  EXPECT_GE(at_floor, 1);
+}
+
+// Greenhouse R1 (38 s, 0.1 m noise with a 0.1 m bias), R̂ from the innovation: the first
+// innovations of each anchor are mostly the start's uncertainty, and R̂ = C - H P H^T read off
+// them fell to its floor; the overconfident filter then gated 612 ranges (3.93 m). Kept at the
+// model's sigma^2 until n0 innovations, it scores 0.063 m. From the residual (the default),
+// which no start's uncertainty drives below zero, 0.063 m too.
 TEST(Shkf, KeepsTheModelsNoiseUntilItsStatisticsHoldN0Innovations) {
   const auto ds = test::simulatedScenario("greenhouse_r1", 1);
-  const auto run = eval::runMethod(ds, "uwb-shkf", 1);
-  const auto metrics = eval::computeMetrics(eval::associate(run.trajectory, ds.ground_truth),
-                                            run.trajectory, ds.ground_truth);
-  EXPECT_GT(metrics.coverage, 0.95);
-  EXPECT_LT(metrics.rmse_2d, 0.12);
-  EXPECT_GE(run.statistics.events.count("r_kept_at_model_until_n0"), 1u);
+  for (const std::string m : {"uwb-shkf:r_from=innovation", "uwb-shkf"}) {
+    const auto run = eval::runMethod(ds, m, 1);
+    const auto metrics = eval::computeMetrics(eval::associate(run.trajectory, ds.ground_truth),
+                                              run.trajectory, ds.ground_truth);
+    std::printf("[ SHKF-GH1 ] %-28s rmse_2d %.3f m\n", m.c_str(), metrics.rmse_2d);
+    EXPECT_GT(metrics.coverage, 0.95) << m;
+    EXPECT_LT(metrics.rmse_2d, 0.12) << m;
+    if (m.find("innovation") != std::string::npos) {
+      EXPECT_GE(run.statistics.events.count("r_kept_at_model_until_n0"), 1u);
+    }
+  }
 }
 
 // Greenhouse R3 (every range 1 m long under 1 m noise, no NLOS): no anchor's offset stands out

@@ -176,7 +176,9 @@ TEST(Plaza, GraphSmoothingBeatsDeadReckoningAndMultilateration) {
 // start pose's heading at rest (the fixes off that line were refused again and again; 5.538 m
 // holding its last heading at rest) instead of fitting a course to them, 3.187 m while a course
 // lost at rest (its variance past a full turn over the first 20 s) was kept. uwb-akf: 1.067 m
-// (2.441 m with its Q̂ free to fall below the model's, q_floor=0), uwb-iakf 1.066 m.
+// (2.441 m with its Q̂ free to fall below the model's, q_floor=0), uwb-iakf 1.066 m. uwb-shkf:
+// 0.843 m with R̂ from the post-fit residual (1.310 m from the innovation, r_from=innovation,
+// whose R̂ = C - H P H^T sat at its floor behind a prediction wider than the ranges' noise).
 TEST(Plaza, RangesAloneLearnTheScale) {
   const auto src = test::sharedData("plaza_cmu_range_odometry");
   UWBLOC_REQUIRE_SHARED_DATA(src);
@@ -190,7 +192,8 @@ TEST(Plaza, RangesAloneLearnTheScale) {
                                                {"uwb-ctrv-ekf", 2.0},
                                                {"uwb-ctrv-ekf:solver=ls", 8.0},
                                                {"uwb-akf", 1.5},
-                                               {"uwb-iakf", 1.5}};
+                                               {"uwb-iakf", 1.5},
+                                               {"uwb-shkf", 1.0}};
   for (const auto& [spec, max_rmse] : bound) {
     const auto run = eval::runMethod(ds, spec, 1);
     const auto errors = eval::associate(run.trajectory, ds.ground_truth);

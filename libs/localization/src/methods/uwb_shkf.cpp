@@ -25,6 +25,13 @@ double UwbShkfT<N>::adaptiveFactor(double change, double c0, double c1) {
 }
 
 template <int N>
+void UwbShkfT<N>::keepAtFloor(double& r, double floor) {
+  if (r >= floor * floor) return;
+  r = floor * floor;
+  ++stats_.events["r_kept_positive"];
+}
+
+template <int N>
 bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
   const int id = r.measurement.anchor_id;
   const double p_nlos = r.measurement.nlos_probability.value_or(0.0);
@@ -40,7 +47,7 @@ bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
   const auto link = this->link(r);
   auto [it, fresh] = links_.try_emplace(link);
   AnchorStatistic& a = it->second;
-  if (fresh) a.r = a.c_exp = this->rangeVariance();
+  if (fresh) a.r = a.c_exp = a.r_exp = this->rangeVariance();
   x_ = x_pred;
   p_ = fpf + q;
   typename Base::Jacobian hj;
@@ -67,31 +74,46 @@ bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
                       : a.k == 0     ? 0.0
                                      : adaptiveFactor(change, sh_.c0, sh_.c1);
   const double c = (1.0 - beta) * a.c_exp + beta * c_win;
-  // The fading factor, then R̂ from C_k.
+  // The fading factor from C_k, then R̂: from C_k (the innovation form, used in this update)
+  // or, by default, from this update's residual (used from the next range on).
   const double lambda = hpfh > 0.0 ? std::clamp((c - hqh - a.r) / hpfh, 1.0, sh_.fading_max) : 1.0;
   if (lambda > 1.0) ++stats_.events["fading_inflated"];
   p_ = lambda * fpf + q;
-  a.r = c - (hj * p_ * hj.transpose())(0, 0);
-  // Until the anchor's statistics hold n0 innovations, R̂ is kept at least the model's: the
-  // first innovations are mostly the start's uncertainty, and C - H P H^T from a few of them
-  // fell to the floor (greenhouse R1: an overconfident filter that gated 612 ranges, 3.93 m).
-  if (a.k + 1 < static_cast<long>(sh_.n0) && a.r < this->rangeVariance()) {
-    a.r = this->rangeVariance();
-    ++stats_.events["r_kept_at_model_until_n0"];
-  }
   const double floor = sh_.r_floor.value.value_or(0.5 * params_.front.sigmaValue());
-  if (a.r < floor * floor) {
-    a.r = floor * floor;
-    ++stats_.events["r_kept_positive"];
+  const bool from_residual = sh_.r_from != SageHusaRFrom::kInnovation;
+  if (!from_residual) {
+    a.r = c - (hj * p_ * hj.transpose())(0, 0);
+    // Until the anchor's statistics hold n0 innovations, R̂ is kept at least the model's: the
+    // first innovations are mostly the start's uncertainty, and C - H P H^T from a few of them
+    // fell to the floor (greenhouse R1: an overconfident filter that gated 612 ranges, 3.93 m).
+    if (a.k + 1 < static_cast<long>(sh_.n0) && a.r < this->rangeVariance()) {
+      a.r = this->rangeVariance();
+      ++stats_.events["r_kept_at_model_until_n0"];
+    }
+    keepAtFloor(a.r, floor);
   }
   if (sh_.bias) a.bias = (1.0 - d) * a.bias + d * innovation;
   a.last_e = e;
   ++a.k;
-  this->reportNoise(link, {a.bias, std::sqrt(a.r), a.k});
   // The update, with the range's NLOS probability widening its noise.
   const Eigen::Matrix<double, 1, 1> rv(a.r / (1.0 - p_nlos));
   const auto inn = kalman::innovate<N, 1>(p_, Eigen::Matrix<double, 1, 1>(e), hj, rv);
+  const typename Base::State x_prior = x_;
   kalman::josephUpdate<N, 1>(x_, p_, inn, hj, rv);
+  if (from_residual) {
+    // ε = e - H (x_k - x_k/k-1): E[ε^2 + H P_k H^T] = R, two positive terms (sage_husa.hpp),
+    // through the same exponential and windowed statistics and the same β as C_k.
+    const double residual = e - (hj * (x_ - x_prior))(0, 0);
+    const double r_k = residual * residual + (hj * p_ * hj.transpose())(0, 0);
+    a.r_exp = (1.0 - d) * a.r_exp + d * r_k;
+    a.r_window.push_back(r_k);
+    while (a.r_window.size() > window) a.r_window.pop_front();
+    const double r_win = std::accumulate(a.r_window.begin(), a.r_window.end(), 0.0) /
+                         static_cast<double>(a.r_window.size());
+    a.r = (1.0 - beta) * a.r_exp + beta * r_win;
+    keepAtFloor(a.r, floor);
+  }
+  this->reportNoise(link, {a.bias, std::sqrt(a.r), a.k});
   return true;
 }
 

@@ -33,10 +33,34 @@
 #pragma once
 
 #include <Eigen/Eigenvalues>
+#include <array>
 #include <cmath>
 #include <optional>
 
 #include "uwbloc/localization/kalman/kalman.hpp"
+#include "uwbloc/localization/params.hpp"
+
+namespace uwbloc::loc {
+
+/// Where a filter's R̂ is estimated from: the innovation (the greenhouse paper's eq. 25 as
+/// printed, e e^T - H P_{k/k-1} H^T), the post-fit residual (ε ε^T + H P_k H^T, above), or auto,
+/// which each filter resolves: uwb-akf the innovation on the fix (the paper's set-up) and the
+/// residual on the ranges, uwb-shkf the residual. On the ranges the process noise is the
+/// constant-velocity model's, wider than a slow robot's motion: e^2 - H P H^T is then negative
+/// for most ranges and R̂ sits at its floor. uwb-akf:mode=ranges on the MRPT demo: each
+/// anchor's R̂ at the 0.01 m floor, the filter followed single ranges onto the mirror image of
+/// the track across the two anchors left when beacon 1 fails (3.45 m; with the residual
+/// 0.213 m); uwb-shkf there (with the manifest's σ), its R̂ at its floor (σ/2) for 604 of about
+/// 1 000 ranges, took a range of beacon 1 0.6 m short at 184 s as a 5 cm one and ran 3.6 m off
+/// (0.379 m; from the residual 0.239 m).
+enum class SageHusaRFrom { kAuto, kInnovation, kResidual };
+constexpr std::array<EnumName<SageHusaRFrom>, 3> enumNames(SageHusaRFrom) {
+  return {{{SageHusaRFrom::kAuto, "auto"},
+           {SageHusaRFrom::kInnovation, "innovation"},
+           {SageHusaRFrom::kResidual, "residual"}}};
+}
+
+}  // namespace uwbloc::loc
 
 namespace uwbloc::loc::kalman {
 

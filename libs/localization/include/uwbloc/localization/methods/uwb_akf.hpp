@@ -49,20 +49,6 @@ constexpr std::array<EnumName<AkfMeans>, 5> enumNames(AkfMeans) {
            {AkfMeans::kNone, "none"}}};
 }
 
-/// Where R̂ is estimated from (kalman/sage_husa.hpp): the innovation (eq. 25 as printed), the
-/// post-fit residual, or auto: the innovation on the fix (the paper's set-up), the residual on
-/// the ranges. On the ranges the process noise is held at the constant-velocity model's, which is
-/// wider than a slow robot's motion: e^2 - H P H^T is then negative for most ranges, each
-/// anchor's R̂ sat at the floor (0.01 m) on the MRPT demo, and the filter followed single ranges
-/// onto the mirror image of the track across the two anchors left when beacon 1 fails (3.45 m;
-/// with the residual 0.213 m).
-enum class AkfRFrom { kAuto, kInnovation, kResidual };
-constexpr std::array<EnumName<AkfRFrom>, 3> enumNames(AkfRFrom) {
-  return {{{AkfRFrom::kAuto, "auto"},
-           {AkfRFrom::kInnovation, "innovation"},
-           {AkfRFrom::kResidual, "residual"}}};
-}
-
 struct UwbAkfParams {
   AkfMode mode = AkfMode::kFix;
   UwbKfParams kf;
@@ -70,11 +56,12 @@ struct UwbAkfParams {
   double gamma = 0.0;        ///< eq. (17)'s bound; 0 = no divergence test (AKF); uwb-iakf: 1
   double r_floor = 0.01;     ///< smallest std of R̂'s eigenvalues [m] (the positivity guard)
   AkfMeans means = AkfMeans::kAuto;
-  AkfRFrom r_from = AkfRFrom::kAuto;
+  SageHusaRFrom r_from = SageHusaRFrom::kAuto;
   EkfStart start = EkfStart::kStartPose;  ///< mode=ranges: where it starts (uwb-ekf's key)
   /// Whether R̂ comes from the post-fit residual, `auto` resolved for the mode.
   bool rFromResidual() const {
-    return r_from == AkfRFrom::kResidual || (r_from == AkfRFrom::kAuto && mode == AkfMode::kRanges);
+    return r_from == SageHusaRFrom::kResidual ||
+           (r_from == SageHusaRFrom::kAuto && mode == AkfMode::kRanges);
   }
   /// On the fix: Q̂ kept at or above the constant-velocity model's process noise over each
   /// interval, with q learnt as uwb-kf learns it (Q̂ - Q_model projected onto the positive

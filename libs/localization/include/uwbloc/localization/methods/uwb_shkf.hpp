@@ -16,23 +16,33 @@
 //   - the fading factor (paper eq. 28-31 in the simplified strong-tracking form of Zhou & Frank,
 //     "Strong tracking filtering of nonlinear time-varying stochastic systems", IJC 65, 1996):
 //       λ_k = max(1, (C_k - H Q H^T - R̂_k-1) / (H F P F^T H^T)),  P_k/k-1 = λ_k F P F^T + Q;
-//   - the measurement noise R̂_k = C_k - H P_k/k-1 H^T (paper eq. 27), kept at least r_floor^2,
-//     and at least the model's sigma^2 until the anchor's statistics hold N0 innovations.
+//   - the measurement noise R̂: the paper's R̂_k = C_k - H P_k/k-1 H^T (eq. 27,
+//     `r_from=innovation`), kept at least r_floor^2, and at least the model's sigma^2 until the
+//     anchor's statistics hold N0 innovations; or, by default (`r_from=auto`), from the post-fit
+//     residual ε_k = e_k - H (x_k - x_k/k-1): the same exponential and windowed statistics, mixed
+//     by the same β, of ε_k^2 + H P_k H^T (Mohamed & Schwarz 1999; kalman/sage_husa.hpp), which
+//     is positive by construction and is used from the next range on. Each range's process noise
+//     is the constant-velocity model's, wider than a slow robot's motion: at one range a second
+//     H P H^T outgrows the ranges' noise, C - H P H^T is negative, and the innovation form held
+//     R̂ at its floor (σ/2) for 604 of the MRPT demo's 1 000-odd ranges; the filter, trusting
+//     single ranges to 5 cm, took a range of beacon 1 0.6 m short at 184 s and ran 3.6 m off.
 // The fading factor is capped at `fading_max`, 1 (off) by default. Applied per range, as this
 // tightly coupled filter must, it multiplies the whole F P F^T at the range rate whenever one
 // anchor's innovation runs high (an NLOS burst that passes the gate). 2D RMSE [m] on the
 // simulated PF-IBAS room (seed 1), the Hanyang LOS A1 / NLOS A1 / NLOS B3 runs and the MRPT demo
 // with its manifest's sigma (with the learning start and the restart after an outage;
-// `uwbloc compare -m uwb-shkf,uwb-shkf:fading_max=1e6,uwb-shkf:bias=1,uwb-shkf:r_floor=0.01`):
-//   defaults                       0.191  0.794  0.778  0.380  0.572
-//   fading uncapped (1e6)          0.816  0.794  0.778  0.380  3.427
-//   bias=1 (the Sage-Husa mean r̂)  0.230  0.582  0.772  0.402  1.527
-//   r_floor=0.01                   0.222  0.895  0.709  0.549  0.355
+// `uwbloc compare -m uwb-shkf,uwb-shkf:fading_max=1e6,uwb-shkf:bias=1,uwb-shkf:r_floor=0.01`,
+// and the same with r_from=innovation):
+//                                  R̂ from the residual             from the innovation
+//   defaults                       0.195 0.794 0.778 0.380 0.239    0.191 0.794 0.778 0.380 0.379
+//   fading uncapped (1e6)          0.739 0.794 0.778 0.380 0.166    0.669 0.794 0.778 0.380 1.293
+//   bias=1 (the Sage-Husa mean r̂)  0.218 0.578 0.770 0.398 1.158    0.230 0.582 0.772 0.402 1.159
+//   r_floor=0.01                   0.195 0.911 0.653 0.612 0.239    0.222 0.895 0.709 0.549 0.335
 // With 3 or 4 anchors a per-anchor bias is barely observable beside the position, hence off by
 // default (it wins on LOS A1 and loses on the room, B3 and the demo). R̂'s floor defaults to half
-// the range sigma: the windowed and faded statistics otherwise drive R̂ to the floor after a run
-// of small innovations, and the filter, then overconfident, refuses the next true move (the last
-// row: worse on the room, LOS A1 and B3, better on NLOS A1 and the demo).
+// the range sigma: from the innovation the windowed and faded statistics otherwise drive R̂ to
+// the floor after a run of small innovations, and the filter, then overconfident, refuses the
+// next true move (the last row: worse on the room, LOS A1 and B3).
 // One statistic per anchor. A range's NLOS probability p (uwb::Range::nlos_probability, from a
 // classifier, optional) divides its R by 1 - p; a range with p above `p_reject` is dropped.
 #pragma once
@@ -40,6 +50,7 @@
 #include <deque>
 #include <map>
 
+#include "uwbloc/localization/kalman/sage_husa.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 
 namespace uwbloc::loc {
@@ -56,6 +67,7 @@ struct UwbShkfParams {
   double fading_max = 1.0;   ///< largest fading factor λ (1: off, see above)
   bool bias = false;         ///< estimate each anchor's range bias r̂ (Sage-Husa mean)
   double p_reject = 0.95;    ///< ranges more likely NLOS than this are dropped
+  SageHusaRFrom r_from = SageHusaRFrom::kAuto;  ///< auto: the residual
 
   template <class V>
   void visit(V&& v) {
@@ -70,6 +82,10 @@ struct UwbShkfParams {
     v("fading_max", fading_max, "largest fading factor (1 = no fading)");
     v("bias", bias, "estimate each anchor's range bias (1) or not (0)");
     v("p_reject", p_reject, "drop ranges whose NLOS probability exceeds this");
+    v("r_from", r_from,
+      "what the estimated R is learnt from: innovation (C - H P H', the paper's eq. 27), "
+      "residual (the post-fit residual eps: eps^2 + H P H', positive by construction), or auto: "
+      "the residual");
   }
 };
 
@@ -86,6 +102,8 @@ class UwbShkfT : public UwbEkfT<N> {
     std::deque<double> window;  ///< the last e^2
     double last_e = 0.0;
     double r = 0.0;   ///< R̂
+    double r_exp = 0.0;           ///< R̂ from the residual: its exponential statistic
+    std::deque<double> r_window;  ///< and the last ε^2 + H P_k H^T
     double bias = 0.0;
     long k = 0;
   };
@@ -104,6 +122,8 @@ class UwbShkfT : public UwbEkfT<N> {
   bool updateWithRange(const AcceptedRange& r) override;
 
  private:
+  /// R̂ kept at least floor^2 (counted as r_kept_positive).
+  void keepAtFloor(double& r, double floor);
   UwbShkfParams sh_;
   std::map<RangeQuarantine::Link, AnchorStatistic> links_;
 };
