@@ -1114,14 +1114,15 @@ TEST(Shkf, OneStepByHand) {
   EXPECT_NEAR(step(",bias=1").first->statistics().estimated_noise.at(2).bias, 0.5, 1e-12);
 }
 
-// uwb-shkf's R̂ on a tag walking at up to 0.3 m/s round three anchors, each anchor's range once a
-// second with 5 cm noise (the MRPT demo's rate), the model's sigma 5 cm. The process noise
-// (calib=0: q 0.1 m^2/s^3) is wider than this walk's (accelerations of 0.05 m/s^2), and over a
-// second H P H^T outgrows the ranges' noise. From the post-fit residual (the default) each anchor's
-// R̂ holds the ranges' noise (measured 0.046 / 0.045 / 0.043 m, never at the floor); from the
-// innovation, C - H P H^T, it is at its floor (sigma / 2) for 391 of the 603 ranges, and two
-// anchors end there.
-TEST(Shkf, TheResidualHoldsTheRangesNoiseWhereTheInnovationSitsAtTheFloor) {
+// R̂ of uwb-shkf and uwb-iahckf on a tag walking at up to 0.3 m/s round three anchors, each
+// anchor's range once a second with 5 cm noise (the MRPT demo's rate), the model's sigma 5 cm.
+// The process noise (calib=0: q 0.1 m^2/s^3) is wider than this walk's (accelerations of
+// 0.05 m/s^2), and over a second H P H^T outgrows the ranges' noise. From the post-fit residual
+// (the default) each anchor's R̂ holds the ranges' noise (measured: uwb-shkf 0.046 / 0.045 /
+// 0.043 m, uwb-iahckf 0.052 / 0.051 / 0.049 m, never at the floor); from the innovation
+// (C - H P H^T, e^2 - P_zz) it is at its floor (sigma / 2) for 391 (uwb-shkf) and 372
+// (uwb-iahckf) of the 603 ranges, and two anchors of each end there.
+TEST(SageHusaFilters, TheResidualHoldsTheRangesNoiseWhereTheInnovationSitsAtTheFloor) {
   const auto at = [](double t) {
     const double w = 2.0 * M_PI * t / 40.0;
     return Eigen::Vector2d(4.0 + 2.0 * std::sin(w), 2.5 + std::cos(w));
@@ -1135,24 +1136,28 @@ TEST(Shkf, TheResidualHoldsTheRangesNoiseWhereTheInnovationSitsAtTheFloor) {
   const auto floored = [](const loc::EstimatorStatistics& s) {
     return s.events.count("r_kept_positive") ? s.events.at("r_kept_positive") : 0;
   };
-  const auto residual = eval::runMethod(ds, "uwb-shkf:sigma=0.05,calib=0", 1).statistics;
-  EXPECT_EQ(floored(residual), 0);
-  ASSERT_EQ(residual.estimated_noise.size(), 3u);
-  for (const auto& [id, noise] : residual.estimated_noise) {
-    std::printf("[ SHKF-R   ] anchor %d: sigma %.4f from the residual\n", id, noise.sigma);
-    EXPECT_NEAR(noise.sigma, 0.05, 0.0125) << id;
+  for (const std::string m : {"uwb-shkf", "uwb-iahckf"}) {
+    const auto residual = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1).statistics;
+    EXPECT_EQ(floored(residual), 0) << m;
+    ASSERT_EQ(residual.estimated_noise.size(), 3u) << m;
+    for (const auto& [id, noise] : residual.estimated_noise) {
+      std::printf("[ SH-R     ] %-10s anchor %d: sigma %.4f from the residual\n", m.c_str(), id,
+                  noise.sigma);
+      EXPECT_NEAR(noise.sigma, 0.05, 0.0125) << m << " " << id;
+    }
+    const auto innovation =
+        eval::runMethod(ds, m + ":sigma=0.05,calib=0,r_from=innovation", 1).statistics;
+    std::printf("[ SH-R     ] %-10s from the innovation: at the floor %ld times\n", m.c_str(),
+                static_cast<long>(floored(innovation)));
+    EXPECT_GT(floored(innovation), 150) << m;
+    int at_floor = 0;
+    for (const auto& [id, noise] : innovation.estimated_noise) {
+      std::printf("[ SH-R     ] %-10s anchor %d: sigma %.4f from the innovation\n", m.c_str(), id,
+                  noise.sigma);
+      at_floor += std::abs(noise.sigma - 0.025) < 1e-9;
+    }
+    EXPECT_GE(at_floor, 1) << m;
   }
-  const auto innovation =
-      eval::runMethod(ds, "uwb-shkf:sigma=0.05,calib=0,r_from=innovation", 1).statistics;
-  std::printf("[ SHKF-R   ] from the innovation: at the floor %ld times\n",
-              static_cast<long>(floored(innovation)));
-  EXPECT_GT(floored(innovation), 150);
-  int at_floor = 0;
-  for (const auto& [id, noise] : innovation.estimated_noise) {
-    std::printf("[ SHKF-R   ] anchor %d: sigma %.4f from the innovation\n", id, noise.sigma);
-    at_floor += std::abs(noise.sigma - 0.025) < 1e-9;
-  }
-  EXPECT_GE(at_floor, 1);
 }
 
 // Greenhouse R1 (38 s, 0.1 m noise with a 0.1 m bias), R̂ from the innovation: the first

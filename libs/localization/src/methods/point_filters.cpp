@@ -95,7 +95,18 @@ bool UwbIahCkfT<N>::updateWithRange(const AcceptedRange& r) {
   if (factor > 1.0) ++stats_.events["robust_factor_inflated"];
   this->cubatureCorrect(e, factor * stat.R(0, 0) * r.variance_scale);
   if (factor == 1.0) {
-    // The Sage-Husa statistics (eq. 16, 24), with the points' P_zz for H P H^T.
+    // The Sage-Husa statistics (eq. 16, 24). R̂ from the innovation, e^2 - P_zz with the points'
+    // P_zz for H P H^T; or (the default) from the post-fit residual at the updated mean, less
+    // the same bias, ε^2 + H P_k H^T with the range's Jacobian there (Mohamed & Schwarz 1999,
+    // kalman/sage_husa.hpp): between ranges a second apart the constant-velocity prediction's
+    // P_zz outgrows the ranges' noise, and from the innovation R̂ sat at its floor (σ/2) for
+    // 673 of the MRPT demo's ranges.
+    double r_sample = e * e - pzz;
+    if (iah_.r_from != SageHusaRFrom::kInnovation) {
+      typename Base::Jacobian hj;
+      const double residual = r.measurement.range - Base::rangeModel(this->x_, r, &hj) - stat.r(0);
+      r_sample = residual * residual + (hj * this->p_ * hj.transpose())(0, 0);
+    }
     const double d = kalman::sageHusaWeight(iah_.forgetting, stat.k);
     if (iah_.bias) {
       // Bounded: the learning start has removed a constant bias before the filter runs, so what
@@ -107,7 +118,7 @@ bool UwbIahCkfT<N>::updateWithRange(const AcceptedRange& r) {
       stat.r(0) = std::clamp((1.0 - d) * stat.r(0) + d * innovation, -cap, cap);
       if (std::abs(stat.r(0)) == cap) ++stats_.events["bias_at_bias_max"];
     }
-    stat.R(0, 0) = (1.0 - d) * stat.R(0, 0) + d * (e * e - pzz);
+    stat.R(0, 0) = (1.0 - d) * stat.R(0, 0) + d * r_sample;
     const double floor = iah_.r_floor.value.value_or(0.5 * params_.front.sigmaValue());
     if (stat.R(0, 0) < floor * floor) {
       stat.R(0, 0) = floor * floor;

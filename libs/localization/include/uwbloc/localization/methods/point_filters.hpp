@@ -79,6 +79,7 @@ struct UwbIahCkfParams {
   bool bias = true;             ///< estimate each anchor's range bias r̂
   AutoDouble bias_max;          ///< largest |r̂| [m]; auto: twice the range sigma
   AutoDouble prior_steps;       ///< the steps sigma^2 and r̂ = 0 count as (sageHusaStartStep)
+  SageHusaRFrom r_from = SageHusaRFrom::kAuto;  ///< auto: the residual
   long priorSteps() const { return kalman::sageHusaStartStep(prior_steps.value, forgetting); }
 
   template <class V>
@@ -95,6 +96,10 @@ struct UwbIahCkfParams {
       "innovations within this are never down-weighted (the paper's UWB-vs-INS 0.24 m) [m]");
     v("r_floor", r_floor, "smallest std kept in the estimated R [m], or auto: half of sigma");
     v("prior_steps", prior_steps, kalman::kPriorStepsHelp);
+    v("r_from", r_from,
+      "what the estimated R is learnt from: innovation (e^2 - P_zz, eq. 16 with the points' "
+      "P_zz), residual (the post-fit residual at the updated mean: eps^2 + H P H', positive by "
+      "construction), or auto: the residual");
   }
 };
 
