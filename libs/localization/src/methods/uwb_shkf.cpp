@@ -8,6 +8,14 @@
 #include "uwbloc/localization/motion_models.hpp"
 
 namespace uwbloc::loc {
+namespace {
+/// Appends `sample` to a statistic's window, keeps its last `length` samples, returns their mean.
+double windowMean(std::deque<double>& window, double sample, std::size_t length) {
+  window.push_back(sample);
+  while (window.size() > length) window.pop_front();
+  return std::accumulate(window.begin(), window.end(), 0.0) / static_cast<double>(window.size());
+}
+}  // namespace
 
 template <int N>
 UwbShkfT<N>::UwbShkfT(const UwbShkfParams& params, const EstimatorContext& context)
@@ -66,10 +74,7 @@ bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
   a.c_exp = (1.0 - d) * a.c_exp + d * e * e;
   const auto window = static_cast<std::size_t>(
       std::clamp(sh_.n0 + sh_.kn * std::abs(a.last_e), double(sh_.n0), 10.0 * sh_.n0));
-  a.window.push_back(e * e);
-  while (a.window.size() > window) a.window.pop_front();
-  const double c_win =
-      std::accumulate(a.window.begin(), a.window.end(), 0.0) / static_cast<double>(a.window.size());
+  const double c_win = windowMean(a.window, e * e, window);
   const double beta = sh_.beta.value ? *sh_.beta.value
                       : a.k == 0     ? 0.0
                                      : adaptiveFactor(change, sh_.c0, sh_.c1);
@@ -106,11 +111,7 @@ bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
     const double residual = e - (hj * (x_ - x_prior))(0, 0);
     const double r_k = residual * residual + (hj * p_ * hj.transpose())(0, 0);
     a.r_exp = (1.0 - d) * a.r_exp + d * r_k;
-    a.r_window.push_back(r_k);
-    while (a.r_window.size() > window) a.r_window.pop_front();
-    const double r_win = std::accumulate(a.r_window.begin(), a.r_window.end(), 0.0) /
-                         static_cast<double>(a.r_window.size());
-    a.r = (1.0 - beta) * a.r_exp + beta * r_win;
+    a.r = (1.0 - beta) * a.r_exp + beta * windowMean(a.r_window, r_k, window);
     keepAtFloor(a.r, floor);
   }
   this->reportNoise(link, {a.bias, std::sqrt(a.r), a.k});
