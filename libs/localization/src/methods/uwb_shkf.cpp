@@ -106,10 +106,10 @@ bool UwbShkfT<N>::updateWithRange(const AcceptedRange& r) {
   const typename Base::State x_prior = x_;
   kalman::josephUpdate<N, 1>(x_, p_, inn, hj, rv);
   if (from_residual) {
-    // ε = e - H (x_k - x_k/k-1): E[ε^2 + H P_k H^T] = R, two positive terms (sage_husa.hpp),
-    // through the same exponential and windowed statistics and the same β as C_k.
-    const double residual = e - (hj * (x_ - x_prior))(0, 0);
-    const double r_k = residual * residual + (hj * p_ * hj.transpose())(0, 0);
+    // E[ε^2 + H P_k H^T] = R, two positive terms (sage_husa.hpp), through the same exponential
+    // and windowed statistics and the same β as C_k.
+    const double r_k = kalman::residualNoiseSample<N, 1>(Eigen::Matrix<double, 1, 1>(e), hj,
+                                                         x_ - x_prior, p_)(0, 0);
     a.r_exp = (1.0 - d) * a.r_exp + d * r_k;
     a.r = (1.0 - beta) * a.r_exp + beta * windowMean(a.r_window, r_k, window);
     keepAtFloor(a.r, floor);

@@ -147,6 +147,15 @@ SageHusaPrediction<N> sageHusaPredict(Vec<N>& x, Mat<N, N>& p, const SageHusaPro
 
 /// The update after sageHusaPredict, for a measurement whose innovation against the predicted
 /// state is `innovation` (z - h(x_{k/k-1}); for a linear model z - H x_{k/k-1}) with Jacobian
+/// One sample of R̂ from the post-fit residual (above): ε = e - H (x_k - x_k/k-1), then
+/// ε ε^T + H P_k H^T. `e` is the innovation the update used, `dx` = x_k - x_k/k-1, `p` = P_k.
+template <int N, int M>
+Mat<M, M> residualNoiseSample(const Vec<M>& e, const Mat<M, N>& h, const Vec<N>& dx,
+                              const Mat<N, N>& p) {
+  const Vec<M> residual = e - h * dx;
+  return residual * residual.transpose() + h * p * h.transpose();
+}
+
 /// `h`: eq. (15) lines 3-6 (the toolkit's Joseph form) with the divergence test and inflation of
 /// eq. (17)-(23) when `gamma` > 0, then the statistics of eq. (16). `process` is updated only
 /// when given (a tightly coupled filter updates it once per range, like the measurement's).
@@ -183,8 +192,7 @@ SageHusaStep sageHusaUpdate(Vec<N>& x, Mat<N, N>& p, const SageHusaPrediction<N>
   const double d = out.d;
   if (meas.mean) meas.r = (1.0 - d) * meas.r + d * innovation;
   if (meas.from_residual) {
-    const Vec<M> residual = e - h * (x - x_pred);
-    meas.R = (1.0 - d) * meas.R + d * (residual * residual.transpose() + h * p * h.transpose());
+    meas.R = (1.0 - d) * meas.R + d * residualNoiseSample<N, M>(e, h, x - x_pred, p);
   } else {
     meas.R = (1.0 - d) * meas.R + d * (e * e.transpose() - h * p_pred * h.transpose());
   }
