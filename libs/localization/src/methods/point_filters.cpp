@@ -14,6 +14,28 @@ using Range1 = Eigen::Matrix<double, 1, 1>;
 
 }  // namespace
 
+template <int N, int K>
+std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
+                                         const kalman::Vec<N>& x, const AcceptedRange& r,
+                                         double depth) {
+  static_assert(K == 2 * N || K == 2 * N + 1, "a symmetric point set");
+  constexpr int first = K - 2 * N;  // the unscented set's mean point comes first
+  const double at_mean = UwbEkfT<N>::rangeModel(x, r);
+  std::optional<Eigen::Vector2d> fold;
+  double deepest = depth;
+  for (int i = first; i < first + N; ++i) {
+    const double plus = UwbEkfT<N>::rangeModel(points.x.col(i), r) - at_mean;
+    const double minus = UwbEkfT<N>::rangeModel(points.x.col(i + N), r) - at_mean;
+    const Eigen::Vector2d along = (points.x.col(i) - x).template head<2>();
+    const double fold_depth = std::min(std::abs(plus), std::abs(minus));
+    if (plus * minus > 0.0 && fold_depth > deepest && along.norm() > 0.0) {
+      deepest = fold_depth;
+      fold = along.normalized();
+    }
+  }
+  return fold;
+}
+
 void checkHinfRatio(double hinf) {
   if (hinf != 0.0 && !(hinf > 1.0))
     throw ParamError("parameter 'hinf' = " + std::to_string(hinf) +
@@ -23,7 +45,7 @@ void checkHinfRatio(double hinf) {
 
 template <int N>
 UwbCkfT<N>::UwbCkfT(const UwbCkfParams& params, const EstimatorContext& context)
-    : UwbEkfT<N>(params.ekf, context), hinf_(params.hinf) {
+    : UwbEkfT<N>(params.ekf, context), hinf_(params.hinf), fold_blind_(params.fold_blind) {
   checkHinfRatio(hinf_);
 }
 
@@ -31,14 +53,25 @@ template <int N>
 typename UwbCkfT<N>::RangePrediction UwbCkfT<N>::predictRange(const AcceptedRange& r) {
   this->boundHeadingSpread(p_);
   const auto points = kalman::cubaturePoints<N>(x_, p_);
+  fold_.reset();
+  if (fold_blind_) fold_ = rangeFold(points, x_, r, std::sqrt(this->rangeVariance(r)));
+  if (fold_) {
+    ++stats_.events["blind_across_fold"];
+    const auto pred = Base::predictRange(r);
+    pzz_ = pred.s - this->rangeVariance(r);
+    return pred;
+  }
   moments_ = kalman::propagate<N, 1>(
       points, x_, [&](const kalman::Vec<N>& x) { return Range1(Base::rangeModel(x, r)); });
-  return {moments_.z(0), moments_.pzz(0, 0) + this->rangeVariance(r)};
+  pzz_ = moments_.pzz(0, 0);
+  return {moments_.z(0), pzz_ + this->rangeVariance(r)};
 }
 
 template <int N>
 void UwbCkfT<N>::cubatureCorrect(double y, double r_var) {
-  if (hinf_ > 0.0) {
+  if (fold_) {
+    this->linearCorrect(y, r_var, &*fold_);
+  } else if (hinf_ > 0.0) {
     kalman::Mat<N, N> position = kalman::Mat<N, N>::Zero();  // the bound is on (x, y)
     position(0, 0) = position(1, 1) = 1.0;
     const double gamma = kalman::hinfCubatureUpdate<N, 1>(x_, p_, moments_, Range1(y),
@@ -86,7 +119,7 @@ bool UwbIahCkfT<N>::updateWithRange(const AcceptedRange& r) {
   const auto pred = this->predictRange(r);
   const double innovation = r.measurement.range - pred.z;
   const double e = innovation - stat.r(0);  // less the link's estimated bias
-  const double pzz = this->moments_.pzz(0, 0);
+  const double pzz = this->predictedRangeVariance();
   const double v = std::abs(e) / std::sqrt(pzz + stat.R(0, 0));
   // The NLOS threshold under the robust factor: small innovations always keep R.
   const bool suspect = std::abs(e) > iah_.nlos_threshold;
@@ -160,6 +193,12 @@ template <int N>
 typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const AcceptedRange& r) {
   if (this->boundHeadingSpread(p_)) s_ = kalman::lowerSquareRoot<N>(p_);
   points_ = kalman::unscentedPoints<N>(x_, s_, sr_.alpha, sr_.beta, sr_.kappa);
+  fold_.reset();
+  if (sr_.fold_blind) fold_ = rangeFold(points_, x_, r, std::sqrt(this->rangeVariance(r)));
+  if (fold_) {
+    ++stats_.events["blind_across_fold"];
+    return Base::predictRange(r);
+  }
   moments_ = kalman::propagate<N, 1>(
       points_, x_, [&](const State& x) { return Range1(Base::rangeModel(x, r)); });
   return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + this->rangeVariance(r)};
@@ -167,12 +206,29 @@ typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const Accepted
 
 template <int N>
 void UwbSrukfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
+  if (fold_) {
+    this->linearCorrect(y, this->rangeVariance(r), &*fold_);
+    s_ = kalman::lowerSquareRoot<N>(p_);
+    return;
+  }
   const bool ok = kalman::sqrtUnscentedUpdate<N, 1>(x_, s_, points_, moments_, Range1(y),
                                                     Range1(std::sqrt(this->rangeVariance(r))));
   if (!ok) ++stats_.events["sqrt_rebuilt"];
   p_ = s_ * s_.transpose();
 }
 
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 8>&,
+                                                  const kalman::Vec<4>&, const AcceptedRange&,
+                                                  double);
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 12>&,
+                                                  const kalman::Vec<6>&, const AcceptedRange&,
+                                                  double);
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 9>&,
+                                                  const kalman::Vec<4>&, const AcceptedRange&,
+                                                  double);
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 13>&,
+                                                  const kalman::Vec<6>&, const AcceptedRange&,
+                                                  double);
 template class UwbCkfT<4>;
 template class UwbCkfT<6>;
 template class UwbIahCkfT<4>;

@@ -153,11 +153,18 @@ typename UwbEkfT<N>::RangePrediction UwbEkfT<N>::predictRange(const AcceptedRang
 }
 
 template <int N>
-void UwbEkfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) {
+void UwbEkfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
+  linearCorrect(y, rangeVariance(r));
+}
+
+template <int N>
+void UwbEkfT<N>::linearCorrect(double y, double r_var, const Eigen::Vector2d* blind) {
+  Jacobian h = hj_;
+  if (blind) h.template head<2>() -= h.template head<2>().dot(*blind) * blind->transpose();
   kalman::Innovation<1> inn;
   inn.y(0) = y;
-  inn.s(0, 0) = pred.s;
-  kalman::josephUpdate<N, 1>(x_, p_, inn, hj_, Eigen::Matrix<double, 1, 1>(rangeVariance(r)));
+  inn.s(0, 0) = (h * p_ * h.transpose())(0, 0) + r_var;
+  kalman::josephUpdate<N, 1>(x_, p_, inn, h, Eigen::Matrix<double, 1, 1>(r_var));
 }
 
 double predictedPositionStd(const Eigen::Matrix4d& p, double dt, const UwbEkfParams& params) {

@@ -16,6 +16,8 @@
 //     threshold or within k0 feed the statistics (an NLOS burst would otherwise become R̂);
 //   - uwb-srukf: the square-root unscented filter (van der Merwe & Wan 2001; the paper compares
 //     an improved variant, ISRUKF, whose changes were lost with its equations).
+// A range that folds over the points (rangeFold: the tag near the line through two anchors) is
+// taken by the EKF's update blind along the fold (`fold_blind`, on by default).
 // The constant-velocity time update is linear, so the cubature filters propagate it exactly
 // (F P F^T + Q, as the points would); the square-root filter propagates its points and S.
 // Each is uwb-ekf's UwbEkfT<N>: on the primary tag (N = 4) or, with two tags or more, on the
@@ -25,6 +27,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 
 #include "uwbloc/localization/kalman/cubature.hpp"
 #include "uwbloc/localization/kalman/sage_husa.hpp"
@@ -32,9 +35,35 @@
 
 namespace uwbloc::loc {
 
+/// The help of the point filters' `fold_blind` (rangeFold).
+inline constexpr const char* kFoldBlindHelp =
+    "a range that folds over the points (along one axis of their spread it is longer, or "
+    "shorter, on both sides of the mean, each by more than the range's std: the tag near the "
+    "line through two anchors, or the spread reaching past the anchor) is taken by the EKF's "
+    "update blind along that axis (1, event blind_across_fold: the position crosses the fold on "
+    "its velocity) or by the points regardless (0: their moments average the fold's two sides, "
+    "the update learns nothing across it and the spread grows)";
+
+/// The direction in the plane along which the range of `r` folds over the symmetric points
+/// `points` about the mean `x` (the cubature set, 2N points x +- c_i, or the unscented one, the
+/// mean first), if it does: for some pair, the range at both points lies on the same side of the
+/// range at the mean, each by more than `depth` (the deepest such pair's position offset).
+/// Along it the range is not monotone across the spread (the tag near the line through two
+/// anchors, moving along it; or the spread reaching past the anchor), and the points' moments
+/// average its two sides: P_xz near zero, P_zz inflated by the curvature, the predicted range
+/// biased long. The linearisation at the mean is no better there: its slope along the fold is
+/// the mean's small offset from the line, and a range a few centimetres short throws the state
+/// across it. So with `fold_blind` the point filters take such a range by the EKF's update with
+/// the Jacobian's component along the fold removed (UwbEkfT::linearCorrect).
+template <int N, int K>
+std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
+                                         const kalman::Vec<N>& x, const AcceptedRange& r,
+                                         double depth);
+
 struct UwbCkfParams {
   UwbEkfParams ekf;
   double hinf = 0.0;  ///< γ over the smallest feasible γ (> 1); 0 = the plain CKF update
+  bool fold_blind = true;  ///< a range that folds over the points: the EKF's, blind across it
 
   template <class V>
   void visit(V&& v) {
@@ -42,6 +71,7 @@ struct UwbCkfParams {
     v("hinf", hinf,
       "H-infinity bound as a multiple (> 1) of the smallest feasible gamma on the position; "
       "larger is closer to the CKF; 0 = plain CKF");
+    v("fold_blind", fold_blind, kFoldBlindHelp);
   }
 };
 
@@ -58,10 +88,17 @@ class UwbCkfT : public UwbEkfT<N> {
   using typename Base::RangePrediction;
   RangePrediction predictRange(const AcceptedRange& r) override;
   void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred) override;
-  /// The CKF or H∞ update with range noise `r_var`.
+  /// The CKF or H∞ update with range noise `r_var`; the EKF's, blind along the fold, when the
+  /// last predictRange found the range folding over the points.
   void cubatureCorrect(double y, double r_var);
+  /// The predicted range's own variance (no R) of the last predictRange: the points' P_zz, or
+  /// H P H^T where the range folded over them.
+  double predictedRangeVariance() const { return pzz_; }
 
   double hinf_;
+  bool fold_blind_;
+  std::optional<Eigen::Vector2d> fold_;  ///< the last predictRange's fold (rangeFold)
+  double pzz_ = 0.0;
   kalman::PointMoments<N, 1, 2 * N> moments_;  ///< of the last predictRange
 };
 
@@ -131,6 +168,7 @@ struct UwbSrukfParams {
   double alpha = 1.0;  ///< spread of the points
   double beta = 2.0;   ///< prior knowledge of the distribution (2: Gaussian)
   double kappa = 0.0;  ///< secondary scaling
+  bool fold_blind = true;  ///< a range that folds over the points: the EKF's, blind across it
 
   template <class V>
   void visit(V&& v) {
@@ -139,6 +177,7 @@ struct UwbSrukfParams {
     v("ut_beta", beta, "unscented beta (2 for a Gaussian)");
     v("ut_kappa", kappa,
       "unscented kappa (n + kappa > 0; n = 4, or 6 on a robot with two tags or more)");
+    v("fold_blind", fold_blind, kFoldBlindHelp);
   }
 };
 
@@ -162,6 +201,7 @@ class UwbSrukfT : public UwbEkfT<N> {
 
  private:
   UwbSrukfParams sr_;
+  std::optional<Eigen::Vector2d> fold_;    ///< the last predictRange's fold (rangeFold)
   Covariance s_ = Covariance::Identity();  ///< P = S S^T
   kalman::PointSet<N, 2 * N + 1> points_;
   kalman::PointMoments<N, 1, 2 * N + 1> moments_;

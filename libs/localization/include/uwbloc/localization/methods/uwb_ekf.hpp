@@ -192,6 +192,11 @@ class UwbEkfT : public UwbEstimator {
   virtual RangePrediction predictRange(const AcceptedRange& r);
   /// EKF: the Joseph update with the innovation y = range - prediction.z.
   virtual void correctWithRange(const AcceptedRange& r, double y, const RangePrediction& pred);
+  /// The EKF's update with the Jacobian of the last EKF predictRange (UwbEkfT::predictRange),
+  /// innovation y and range noise variance `r_var`; with `blind` (a unit vector in the plane),
+  /// the Jacobian's position part less its component along it: the range then moves the state
+  /// along `blind` only through the covariance's correlations.
+  void linearCorrect(double y, double r_var, const Eigen::Vector2d* blind = nullptr);
   /// The gate's and the quarantine's verdict on this range's link with this innovation; a
   /// refused range is counted.
   bool admit(const AcceptedRange& r, double innovation, bool in_gate);
