@@ -271,10 +271,12 @@ data::Dataset bounceOffTheLine(double t_turn) {
 // refused for good: without the rule the filters stay on the mirror side to the end (all four
 // 6.0 m off at 50 s). The rule (mirrored_across_two_anchors) reflects them across AB after
 // three such ranges: within 0.2 m (held 5 s) of the truth 0.2 s after C comes back.
+// (federated-ekf's local filters, blind across the fold of AB by default, are back within 0.2 m
+// 0.5 s after C without the rule; the rule is tested on them with fold_blind=0.)
 TEST(RangeFilters, CrossBackWhenTheThirdAnchorSaysTheMirror) {
   const data::Dataset ds = bounceOffTheLine(15.9);
-  for (const std::string m : {"uwb-ekf", "uwb-ckf", "uwb-shkf", "federated-ekf"}) {
-    const auto run = eval::runMethod(ds, m + ":sigma=0.05,calib=0", 1);
+  for (const std::string m : {"uwb-ekf:", "uwb-ckf:", "uwb-shkf:", "federated-ekf:fold_blind=0,"}) {
+    const auto run = eval::runMethod(ds, m + "sigma=0.05,calib=0", 1);
     const auto back = test::recoveryTime(ds, run.trajectory, 20.0, 0.2, 5.0);
     ASSERT_GT(run.trajectory.size(), 10u) << m;
     const auto& last = run.trajectory[run.trajectory.size() - 10];  // within the reference
@@ -1005,11 +1007,11 @@ TEST(Registry, SetOverridesParseAndRefuseWhatIsNoOverride) {
 
 // ---- The point-based filters and the improved Sage-Husa KF ----
 
-// The federated filter with one local filter is uwb-ekf: same prediction, gate, quarantine and
-// update, and the fusion of one filter is that filter.
+// The federated filter with one local filter and without the fold's blind update is uwb-ekf:
+// same prediction, gate, quarantine and update, and the fusion of one filter is that filter.
 TEST(PointFilters, FederatedWithOneGroupIsTheEkf) {
   const auto ekf = eval::runMethod(room(), "uwb-ekf", 1);
-  const auto fed = eval::runMethod(room(), "federated-ekf:groups=1", 1);
+  const auto fed = eval::runMethod(room(), "federated-ekf:groups=1,fold_blind=0", 1);
   ASSERT_EQ(ekf.trajectory.size(), fed.trajectory.size());
   for (std::size_t i = 0; i < ekf.trajectory.size(); ++i)
     ASSERT_LT((ekf.trajectory[i].pose - fed.trajectory[i].pose).norm(), 1e-9) << i;
@@ -1075,18 +1077,24 @@ TEST(PointFilters, RangeFoldByHand) {
 }
 
 // The MRPT demo: beacon 1 reads metres short at 78-90 s and 300-320 s, while the robot crosses
-// the line through beacons 2 and 3. Their ranges fold over the points across that line: the
-// cubature filter's P_xz vanishes and its spread grows until it restarts, and the range's slope
-// at the mean throws it across the line, to the mirror side, in either direction. Blind across
-// the fold (fold_blind, the default), the filters carry the position across on their velocity.
+// the line through beacons 2 and 3. Their ranges fold over the state's spread across that line:
+// the cubature filter's P_xz vanishes and its spread grows until it restarts, and the range's
+// slope at the mean throws it across the line, to the mirror side, in either direction (the
+// federated filter's locals, on a share of the information, the furthest). Blind across the
+// fold (fold_blind, the default), the filters carry the position across on their velocity.
 // Measured (without the manifest's sigma / with it): uwb-ckf 0.231 / 0.272 -> 0.189 / 0.198 m,
 // uwb-srukf 0.226 / 0.268 -> 0.184 / 0.191, uwb-hinf-ckf 0.255 / 0.327 -> 0.191 / 0.199,
-// uwb-iahckf 0.259 / 0.263 -> 0.238 / 0.250 m.
+// uwb-iahckf 0.259 / 0.263 -> 0.238 / 0.250, federated-ekf 1.078 / 1.069 -> 0.232 / 0.383 m.
 TEST(PointFilters, CarryThePositionAcrossTheFoldOfTwoAnchors) {
   auto ds = data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
+  const std::map<std::string, double> bound = {{"uwb-ckf", 0.22},
+                                               {"uwb-srukf", 0.22},
+                                               {"uwb-hinf-ckf", 0.22},
+                                               {"uwb-iahckf", 0.27},
+                                               {"federated-ekf", 0.42}};
   for (const bool manifest_sigma : {true, false}) {
     if (!manifest_sigma) ds.manifest.uwb_sigma.reset();
-    for (const std::string m : {"uwb-ckf", "uwb-srukf", "uwb-hinf-ckf", "uwb-iahckf"}) {
+    for (const auto& [m, most] : bound) {
       double rmse[2];
       for (const bool blind : {false, true}) {
         const auto run = eval::runMethod(ds, m + ":fold_blind=" + (blind ? "1" : "0"), 1);
@@ -1098,7 +1106,7 @@ TEST(PointFilters, CarryThePositionAcrossTheFoldOfTwoAnchors) {
       }
       std::printf("[ FOLD     ] %s (%s): %.3f -> %.3f m\n", m.c_str(),
                   manifest_sigma ? "manifest sigma" : "defaults", rmse[0], rmse[1]);
-      EXPECT_LT(rmse[1], 0.26) << m;
+      EXPECT_LT(rmse[1], most) << m;
       EXPECT_LT(rmse[1], rmse[0] - 0.01) << m;
     }
   }

@@ -1,12 +1,13 @@
 #include "uwbloc/localization/methods/federated_ekf.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace uwbloc::loc {
 
 template <int N>
 FederatedEkfT<N>::FederatedEkfT(const FederatedEkfParams& params, const EstimatorContext& context)
-    : UwbEkfT<N>(params.ekf, context) {
+    : UwbEkfT<N>(params.ekf, context), fold_blind_(params.fold_blind) {
   std::vector<int> ids;
   for (const auto& a : context.anchors) ids.push_back(a.id);
   std::sort(ids.begin(), ids.end());
@@ -63,11 +64,21 @@ bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
   typename Base::Jacobian hj;
   const double h = Base::rangeModel(local.x, r, &hj);
   const Eigen::Matrix<double, 1, 1> rv(this->rangeVariance(r));
-  const auto inn =
-      kalman::innovate<N, 1>(local.p, Eigen::Matrix<double, 1, 1>(r.measurement.range - h), hj, rv);
-  const bool used = this->admit(r, inn.y(0), kalman::inGate(inn, uwb::ChiSquareGate(params_.gate)));
+  const Eigen::Matrix<double, 1, 1> y(r.measurement.range - h);
+  const bool used = this->admit(
+      r, y(0),
+      kalman::inGate(kalman::innovate<N, 1>(local.p, y, hj, rv), uwb::ChiSquareGate(params_.gate)));
   if (used) {
-    kalman::josephUpdate<N, 1>(local.x, local.p, inn, hj, rv);
+    if (fold_blind_) {
+      const auto fold =
+          rangeFold(kalman::cubaturePoints<N>(local.x, local.p), local.x, r, std::sqrt(rv(0)));
+      if (fold) {
+        ++this->stats_.events["blind_across_fold"];
+        hj.template head<2>() -= hj.template head<2>().dot(*fold) * fold->transpose();
+      }
+    }
+    kalman::josephUpdate<N, 1>(local.x, local.p, kalman::innovate<N, 1>(local.p, y, hj, rv), hj,
+                               rv);
     local.measured = true;
   }
   fuse();

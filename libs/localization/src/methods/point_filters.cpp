@@ -14,28 +14,6 @@ using Range1 = Eigen::Matrix<double, 1, 1>;
 
 }  // namespace
 
-template <int N, int K>
-std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
-                                         const kalman::Vec<N>& x, const AcceptedRange& r,
-                                         double depth) {
-  static_assert(K == 2 * N || K == 2 * N + 1, "a symmetric point set");
-  constexpr int first = K - 2 * N;  // the unscented set's mean point comes first
-  const double at_mean = UwbEkfT<N>::rangeModel(x, r);
-  std::optional<Eigen::Vector2d> fold;
-  double deepest = depth;
-  for (int i = first; i < first + N; ++i) {
-    const double plus = UwbEkfT<N>::rangeModel(points.x.col(i), r) - at_mean;
-    const double minus = UwbEkfT<N>::rangeModel(points.x.col(i + N), r) - at_mean;
-    const Eigen::Vector2d along = (points.x.col(i) - x).template head<2>();
-    const double fold_depth = std::min(std::abs(plus), std::abs(minus));
-    if (plus * minus > 0.0 && fold_depth > deepest && along.norm() > 0.0) {
-      deepest = fold_depth;
-      fold = along.normalized();
-    }
-  }
-  return fold;
-}
-
 void checkHinfRatio(double hinf) {
   if (hinf != 0.0 && !(hinf > 1.0))
     throw ParamError("parameter 'hinf' = " + std::to_string(hinf) +
@@ -217,18 +195,6 @@ void UwbSrukfT<N>::correctWithRange(const AcceptedRange& r, double y, const Rang
   p_ = s_ * s_.transpose();
 }
 
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 8>&,
-                                                  const kalman::Vec<4>&, const AcceptedRange&,
-                                                  double);
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 12>&,
-                                                  const kalman::Vec<6>&, const AcceptedRange&,
-                                                  double);
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 9>&,
-                                                  const kalman::Vec<4>&, const AcceptedRange&,
-                                                  double);
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 13>&,
-                                                  const kalman::Vec<6>&, const AcceptedRange&,
-                                                  double);
 template class UwbCkfT<4>;
 template class UwbCkfT<6>;
 template class UwbIahCkfT<4>;

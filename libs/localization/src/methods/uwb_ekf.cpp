@@ -167,6 +167,28 @@ void UwbEkfT<N>::linearCorrect(double y, double r_var, const Eigen::Vector2d* bl
   kalman::josephUpdate<N, 1>(x_, p_, inn, h, Eigen::Matrix<double, 1, 1>(r_var));
 }
 
+template <int N, int K>
+std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
+                                         const kalman::Vec<N>& x, const AcceptedRange& r,
+                                         double depth) {
+  static_assert(K == 2 * N || K == 2 * N + 1, "a symmetric point set");
+  constexpr int first = K - 2 * N;  // the unscented set's mean point comes first
+  const double at_mean = UwbEkfT<N>::rangeModel(x, r);
+  std::optional<Eigen::Vector2d> fold;
+  double deepest = depth;
+  for (int i = first; i < first + N; ++i) {
+    const double plus = UwbEkfT<N>::rangeModel(points.x.col(i), r) - at_mean;
+    const double minus = UwbEkfT<N>::rangeModel(points.x.col(i + N), r) - at_mean;
+    const Eigen::Vector2d along = (points.x.col(i) - x).template head<2>();
+    const double fold_depth = std::min(std::abs(plus), std::abs(minus));
+    if (plus * minus > 0.0 && fold_depth > deepest && along.norm() > 0.0) {
+      deepest = fold_depth;
+      fold = along.normalized();
+    }
+  }
+  return fold;
+}
+
 double predictedPositionStd(const Eigen::Matrix4d& p, double dt, const UwbEkfParams& params) {
   Eigen::Matrix4d f, q;
   constantVelocityModel(std::max(0.0, dt), params.accel_psd, f, q, params.velocity_tau);
@@ -440,6 +462,18 @@ bool UwbEkfT<N>::admit(const AcceptedRange& r, double innovation, bool in_gate) 
                            stats_);
 }
 
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 8>&,
+                                                  const kalman::Vec<4>&, const AcceptedRange&,
+                                                  double);
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 12>&,
+                                                  const kalman::Vec<6>&, const AcceptedRange&,
+                                                  double);
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 9>&,
+                                                  const kalman::Vec<4>&, const AcceptedRange&,
+                                                  double);
+template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 13>&,
+                                                  const kalman::Vec<6>&, const AcceptedRange&,
+                                                  double);
 template class UwbEkfT<4>;
 template class UwbEkfT<6>;
 

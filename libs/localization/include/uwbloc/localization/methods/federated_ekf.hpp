@@ -9,7 +9,11 @@
 // and resets them to (x_g, P_g / β_i) once every group has measured since the last reset. The
 // paper's federated filter fuses a UWB and an INS sub-filter; without an IMU the sub-filters are
 // anchor groups, which keeps the decentralised structure (and its information loss). On a robot
-// with two tags or more the local filters hold uwb-ekf's pose state (N = 6, uwb_ekf.hpp).
+// with two tags or more the local filters hold uwb-ekf's pose state (N = 6, uwb_ekf.hpp). A range
+// that folds over a local filter's spread (rangeFold, on its cubature points: the tag near the
+// line through two anchors) updates it blind across the fold (`fold_blind`): each local runs on
+// a share of the information (P / beta_i), so its spread is wider than uwb-ekf's and the slope
+// at its mean threw it across the line of beacons 2 and 3 on the MRPT demo.
 #pragma once
 
 #include <vector>
@@ -21,11 +25,13 @@ namespace uwbloc::loc {
 struct FederatedEkfParams {
   UwbEkfParams ekf;
   int groups = 2;  ///< local filters (anchor groups)
+  bool fold_blind = true;  ///< a range that folds over a local filter's spread: blind across it
 
   template <class V>
   void visit(V&& v) {
     ekf.visit(v);
     v("groups", groups, "local filters, each on one group of anchors (round-robin in id order)");
+    v("fold_blind", fold_blind, kFoldBlindHelp);
   }
 };
 
@@ -55,6 +61,7 @@ class FederatedEkfT : public UwbEkfT<N> {
   void fuse();
   void resetLocals();
 
+  bool fold_blind_;
   std::vector<Local> locals_;
   std::map<int, int> group_of_;  ///< anchor id -> local filter
 };

@@ -27,38 +27,12 @@
 #pragma once
 
 #include <map>
-#include <optional>
 
 #include "uwbloc/localization/kalman/cubature.hpp"
 #include "uwbloc/localization/kalman/sage_husa.hpp"
 #include "uwbloc/localization/methods/uwb_ekf.hpp"
 
 namespace uwbloc::loc {
-
-/// The help of the point filters' `fold_blind` (rangeFold).
-inline constexpr const char* kFoldBlindHelp =
-    "a range that folds over the points (along one axis of their spread it is longer, or "
-    "shorter, on both sides of the mean, each by more than the range's std: the tag near the "
-    "line through two anchors, or the spread reaching past the anchor) is taken by the EKF's "
-    "update blind along that axis (1, event blind_across_fold: the position crosses the fold on "
-    "its velocity) or by the points regardless (0: their moments average the fold's two sides, "
-    "the update learns nothing across it and the spread grows)";
-
-/// The direction in the plane along which the range of `r` folds over the symmetric points
-/// `points` about the mean `x` (the cubature set, 2N points x +- c_i, or the unscented one, the
-/// mean first), if it does: for some pair, the range at both points lies on the same side of the
-/// range at the mean, each by more than `depth` (the deepest such pair's position offset).
-/// Along it the range is not monotone across the spread (the tag near the line through two
-/// anchors, moving along it; or the spread reaching past the anchor), and the points' moments
-/// average its two sides: P_xz near zero, P_zz inflated by the curvature, the predicted range
-/// biased long. The linearisation at the mean is no better there: its slope along the fold is
-/// the mean's small offset from the line, and a range a few centimetres short throws the state
-/// across it. So with `fold_blind` the point filters take such a range by the EKF's update with
-/// the Jacobian's component along the fold removed (UwbEkfT::linearCorrect).
-template <int N, int K>
-std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
-                                         const kalman::Vec<N>& x, const AcceptedRange& r,
-                                         double depth);
 
 struct UwbCkfParams {
   UwbEkfParams ekf;

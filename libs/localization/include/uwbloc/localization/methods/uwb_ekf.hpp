@@ -40,8 +40,10 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "uwbloc/localization/estimator.hpp"
+#include "uwbloc/localization/kalman/cubature.hpp"
 #include "uwbloc/localization/kalman/kalman.hpp"
 #include "uwbloc/localization/motion_models.hpp"
 #include "uwbloc/localization/range_front_end.hpp"
@@ -105,6 +107,33 @@ struct UwbEkfParams {
     v("start_sigma_yaw", start_sigma_yaw, "two tags or more: heading std at the start pose [deg]");
   }
 };
+
+/// The help of `fold_blind` in the point filters and federated-ekf (rangeFold).
+inline constexpr const char* kFoldBlindHelp =
+    "a range that folds over the state's spread (along one axis of the cubature points it is "
+    "longer, or shorter, on both sides of the mean, each by more than the range's std: the tag "
+    "near the "
+    "line through two anchors, or the spread reaching past the anchor) is taken by the EKF's "
+    "update blind along that axis (1, event blind_across_fold: the position crosses the fold on "
+    "its velocity) or as it is (0: the points' moments average the fold's two sides and learn "
+    "nothing across it; the slope at the mean throws the state across on a range a few "
+    "centimetres short)";
+
+/// The direction in the plane along which the range of `r` folds over the symmetric points
+/// `points` about the mean `x` (the cubature set, 2N points x +- c_i, or the unscented one, the
+/// mean first), if it does: for some pair, the range at both points lies on the same side of the
+/// range at the mean, each by more than `depth` (the deepest such pair's position offset).
+/// Along it the range is not monotone across the spread (the tag near the line through two
+/// anchors, moving along it; or the spread reaching past the anchor), and the points' moments
+/// average its two sides: P_xz near zero, P_zz inflated by the curvature, the predicted range
+/// biased long. The linearisation at the mean is no better there: its slope along the fold is
+/// the mean's small offset from the line, and a range a few centimetres short throws the state
+/// across it. So with `fold_blind` the point filters and federated-ekf take such a range by the
+/// EKF's update with the Jacobian's component along the fold removed (UwbEkfT::linearCorrect).
+template <int N, int K>
+std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
+                                         const kalman::Vec<N>& x, const AcceptedRange& r,
+                                         double depth);
 
 /// The quarantine of uwb-ekf and the filters built on it (see the top of this file): a link
 /// whose range failed the gate is used again only after `readmit` in-gate ranges in a row, each
