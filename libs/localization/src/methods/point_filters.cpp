@@ -34,7 +34,6 @@ typename UwbCkfT<N>::RangePrediction UwbCkfT<N>::predictRange(const AcceptedRang
   fold_.reset();
   if (fold_blind_) fold_ = rangeFold(points, x_, r, std::sqrt(this->rangeVariance(r)));
   if (fold_) {
-    ++stats_.events["blind_across_fold"];
     const auto pred = Base::predictRange(r);
     pzz_ = pred.s - this->rangeVariance(r);
     return pred;
@@ -48,6 +47,7 @@ typename UwbCkfT<N>::RangePrediction UwbCkfT<N>::predictRange(const AcceptedRang
 template <int N>
 void UwbCkfT<N>::cubatureCorrect(double y, double r_var) {
   if (fold_) {
+    ++stats_.events["blind_across_fold"];
     this->linearCorrect(y, r_var, &*fold_);
   } else if (hinf_ > 0.0) {
     kalman::Mat<N, N> position = kalman::Mat<N, N>::Zero();  // the bound is on (x, y)
@@ -173,10 +173,7 @@ typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const Accepted
   points_ = kalman::unscentedPoints<N>(x_, s_, sr_.alpha, sr_.beta, sr_.kappa);
   fold_.reset();
   if (sr_.fold_blind) fold_ = rangeFold(points_, x_, r, std::sqrt(this->rangeVariance(r)));
-  if (fold_) {
-    ++stats_.events["blind_across_fold"];
-    return Base::predictRange(r);
-  }
+  if (fold_) return Base::predictRange(r);
   moments_ = kalman::propagate<N, 1>(
       points_, x_, [&](const State& x) { return Range1(Base::rangeModel(x, r)); });
   return {moments_.z(0), std::max(moments_.pzz(0, 0), 0.0) + this->rangeVariance(r)};
@@ -185,6 +182,7 @@ typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const Accepted
 template <int N>
 void UwbSrukfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
   if (fold_) {
+    ++stats_.events["blind_across_fold"];
     this->linearCorrect(y, this->rangeVariance(r), &*fold_);
     s_ = kalman::lowerSquareRoot<N>(p_);
     return;

@@ -112,11 +112,10 @@ struct UwbEkfParams {
 inline constexpr const char* kFoldBlindHelp =
     "a range that folds over the state's spread (along one axis of the cubature points it is "
     "longer, or shorter, on both sides of the mean, each by more than the range's std: the tag "
-    "near the "
-    "line through two anchors, or the spread reaching past the anchor) is taken by the EKF's "
-    "update blind along that axis (1, event blind_across_fold: the position crosses the fold on "
-    "its velocity) or as it is (0: the points' moments average the fold's two sides and learn "
-    "nothing across it; the slope at the mean throws the state across on a range a few "
+    "near the line through two anchors, or the spread reaching past the anchor) is taken by the "
+    "EKF's update blind along that axis (1, event blind_across_fold: the position crosses the "
+    "fold on its velocity) or as it is (0: the points' moments average the fold's two sides and "
+    "learn nothing across it; the slope at the mean throws the state across on a range a few "
     "centimetres short)";
 
 /// The direction in the plane along which the range of `r` folds over the symmetric points
