@@ -74,7 +74,7 @@ bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
           rangeFold(kalman::cubaturePoints<N>(local.x, local.p), local.x, r, std::sqrt(rv(0)));
       if (fold) {
         ++this->stats_.events["blind_across_fold"];
-        hj.template head<2>() -= hj.template head<2>().dot(*fold) * fold->transpose();
+        Base::blindAlong(hj, *fold);
       }
     }
     kalman::josephUpdate<N, 1>(local.x, local.p, kalman::innovate<N, 1>(local.p, y, hj, rv), hj,

@@ -160,7 +160,7 @@ void UwbEkfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangeP
 template <int N>
 void UwbEkfT<N>::linearCorrect(double y, double r_var, const Eigen::Vector2d* blind) {
   Jacobian h = hj_;
-  if (blind) h.template head<2>() -= h.template head<2>().dot(*blind) * blind->transpose();
+  if (blind) blindAlong(h, *blind);
   kalman::Innovation<1> inn;
   inn.y(0) = y;
   inn.s(0, 0) = (h * p_ * h.transpose())(0, 0) + r_var;

@@ -225,6 +225,11 @@ class UwbEkfT : public UwbEstimator {
   /// the Jacobian's position part less its component along it: the range then moves the state
   /// along `blind` only through the covariance's correlations.
   void linearCorrect(double y, double r_var, const Eigen::Vector2d* blind = nullptr);
+  /// Removes from the Jacobian's position part its component along the unit vector `axis` (the
+  /// fold's blind update, rangeFold).
+  static void blindAlong(Jacobian& h, const Eigen::Vector2d& axis) {
+    h.template head<2>() -= h.template head<2>().dot(axis) * axis.transpose();
+  }
   /// The gate's and the quarantine's verdict on this range's link with this innovation; a
   /// refused range is counted.
   bool admit(const AcceptedRange& r, double innovation, bool in_gate);
