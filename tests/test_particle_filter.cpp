@@ -125,6 +125,33 @@ TEST(ParticleFilter, ResamplesOnlyBelowTheEssThreshold) {
   EXPECT_LT(std::abs(pf.estimate().mean.x()), 0.1);
 }
 
+// The marginal likelihood of the measurements: a prior N(0, 1) on x and a measurement z = x + v,
+// v ~ N(0, 0.5^2), give p(z) = N(z; 0, 1.25), whatever the weights' normalisation; a likelihood
+// that is the same at every particle adds its own log, before and after a resampling.
+TEST(ParticleFilter, LogEvidenceIsTheMeasurementsMarginalLikelihood) {
+  ParticleFilterParams p;
+  p.particles = 200000;
+  p.ess_threshold = 1.0;  // resample after any uneven weighting
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kSystematic), 7);
+  pf.initGaussian({0, 0, 0}, {1, 1, 0.1});
+  EXPECT_EQ(pf.logEvidence(), 0.0);
+  const double z = 0.8, r = 0.5, s2 = 1.0 + r * r;
+  pf.weight([&](double x, double, double) {
+    return -0.5 * (z - x) * (z - x) / (r * r) - std::log(r * std::sqrt(2.0 * M_PI));
+  });
+  EXPECT_TRUE(pf.normalizeAndResample());
+  const double analytic = -0.5 * z * z / s2 - 0.5 * std::log(2.0 * M_PI * s2);
+  EXPECT_NEAR(pf.logEvidence(), analytic, 0.01);
+  const double first = pf.logEvidence();
+  pf.weight([](double, double, double) { return -2.0; });
+  pf.normalize();
+  EXPECT_NEAR(pf.logEvidence() - first, -2.0, 1e-9);
+  pf.normalize();  // nothing weighed since: nothing added
+  EXPECT_NEAR(pf.logEvidence() - first, -2.0, 1e-9);
+  pf.resetEvidence();
+  EXPECT_EQ(pf.logEvidence(), 0.0);
+}
+
 TEST(ParticleFilter, MotionModelMovesTheCloudByTheIncrement) {
   ParticleFilterParams p;
   p.particles = 4000;

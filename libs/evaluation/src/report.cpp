@@ -137,7 +137,8 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
     e["resets"] = m.resets;
     e["events"] = nlohmann::json::object();
     for (const auto& [name, count] : m.events) e["events"][name] = count;
-    if (!m.estimated_noise.empty() || m.estimated_range_sigma || m.estimated_accel_psd) {
+    if (!m.estimated_noise.empty() || m.estimated_range_sigma || m.estimated_accel_psd ||
+        m.estimated_motion_scale) {
       e["estimated_noise"] = nlohmann::json::object();
       for (const auto& [anchor, n] : m.estimated_noise)
         e["estimated_noise"][std::to_string(anchor)] = {
@@ -153,6 +154,7 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
                                         {"nlos_mean", number(x->nlos_mean)},
                                         {"weight", number(x->weight)}};
       if (m.estimated_accel_psd) e["estimated_accel_psd"] = number(*m.estimated_accel_psd);
+      if (m.estimated_motion_scale) e["estimated_motion_scale"] = number(*m.estimated_motion_scale);
     }
     e["associated"] = m.metrics.associated;
     e["cdf"] = nlohmann::json::array();
@@ -340,6 +342,10 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
     }
     if (m.contains("estimated_accel_psd")) {
       std::snprintf(buf, sizeof buf, " motion q %.3g m^2/s^3;", num(m, "estimated_accel_psd"));
+      out << buf;
+    }
+    if (m.contains("estimated_motion_scale")) {
+      std::snprintf(buf, sizeof buf, " odometry noise x%.4g;", num(m, "estimated_motion_scale"));
       out << buf;
     }
     for (const auto& [anchor, n] : byAnchor(m["estimated_noise"])) {

@@ -285,6 +285,7 @@ MethodSummary summarise(const data::Dataset& dataset, const std::string& spec,
       s.estimated_range_scale = run.statistics.estimated_range_scale;
       s.estimated_range_mixture = run.statistics.estimated_range_mixture;
       s.estimated_accel_psd = run.statistics.estimated_accel_psd;
+      s.estimated_motion_scale = run.statistics.estimated_motion_scale;
       s.range_decisions = std::move(run.statistics.range_decisions);
       s.range_rejections = std::move(run.statistics.range_rejections);
       s.artifacts = std::move(run.artifacts);

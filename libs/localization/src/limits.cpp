@@ -27,6 +27,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"a2", 0, 10, false, "odometry noise"},
       {"a3", 0, 10, false, "odometry noise"},
       {"a4", 0, 10, false, "odometry noise"},
+      {"a_scale", 0, 100, true, "a factor on a1-a4"},
       {"ess", 0, 1, false, "a fraction of the particle count"},
       {"init_xy", 0, 1e3, false, "[m]"},
       {"init_theta", 0, 180, false, "[deg]"},

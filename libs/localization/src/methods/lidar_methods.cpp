@@ -67,7 +67,7 @@ void addLidarMethods(Registry& r) {
   r.add(pfMethod<Uwb>("uwb-pf",
                       "UWB + odometry particle filter (the UWB single-sensor particle baseline), "
                       "NLOS test against the odometry-predicted pose",
-                      {"odometry", "ranges"}, {}));
+                      {"odometry", "ranges"}, {{"a_scale", "auto"}}));
 }
 
 }  // namespace uwbloc::loc

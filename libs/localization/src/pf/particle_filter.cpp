@@ -126,6 +126,7 @@ void ParticleFilter::prepareStart() {
   scratch_.resize(n);
   w_.assign(n, 1.0 / n);
   indices_.assign(n, 0);
+  log_sum_before_ = std::log(static_cast<double>(n));  // every start draws log-weights of 0
 }
 
 bool ParticleFilter::readyToShrink() const {
@@ -218,6 +219,9 @@ double ParticleFilter::normalize() {
     w_[i] = std::exp(set_.log_w[i] - max_l);
     sum += w_[i];
   }
+  if (sum > 0.0 && std::isfinite(sum) && std::isfinite(max_l))
+    log_evidence_ += max_l + std::log(sum) - log_sum_before_;
+  log_sum_before_ = 0.0;
   if (!(sum > 0.0) || !std::isfinite(sum)) {
     std::fill(w_.begin(), w_.end(), 1.0 / n);  // degenerate: fall back to uniform weights
   } else {
@@ -254,6 +258,7 @@ bool ParticleFilter::normalizeAndResample() {
   std::swap(set_, scratch_);
   w_.resize(n);
   std::fill(w_.begin(), w_.end(), 1.0 / n);
+  log_sum_before_ = std::log(static_cast<double>(n));
   ++resamples_;
   return true;
 }

@@ -89,6 +89,7 @@ struct MethodSummary {
   std::optional<double> estimated_range_scale;        ///< the model's range scale (first run)
   std::optional<loc::RangeMixture> estimated_range_mixture;  ///< the range likelihood in force
   std::optional<double> estimated_accel_psd;  ///< the learnt motion q [m^2/s^3] (first run)
+  std::optional<double> estimated_motion_scale;  ///< the learnt odometry noise scale (first run)
   std::vector<loc::ParamInfo> parameters;
   std::vector<loc::PoseEstimate> trajectory;        ///< of the first run
   std::vector<loc::RangeDecision> range_decisions;  ///< of the first run (NLOS-judging methods)

@@ -83,6 +83,8 @@ struct EstimatorStatistics {
   std::optional<RangeMixture> estimated_range_mixture;
   /// A learnt white-acceleration spectral density of the tag's motion [m^2/s^3] (q=auto).
   std::optional<double> estimated_accel_psd;
+  /// The factor on the odometry noise learnt at the start (a particle filter's a_scale=auto).
+  std::optional<double> estimated_motion_scale;
   /// The learnt path's mean squared speed [m^2/s^2], with the q above (motion=cv).
   std::optional<double> mean_square_speed;
 };

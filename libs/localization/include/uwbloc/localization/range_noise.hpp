@@ -174,6 +174,8 @@ class LearningStart {
         share_key_(std::move(share_key)),
         cache_(std::move(cache)) {}
   bool learning() const { return learner_ != nullptr; }
+  /// The events kept while learning; during the Learnt callback, every event of the start.
+  const std::vector<Event>& kept() const { return kept_; }
   /// One event: kept while learning (ending the learning when its span is over), else stepped;
   /// returns the oldest queued estimate.
   std::optional<PoseEstimate> process(const Event& event, const Learnt& learnt, const Step& step);

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <deque>
+#include <functional>
 #include <memory>
 #include <tuple>
 #include <type_traits>
@@ -40,6 +41,14 @@ class ParticleLocalizer : public Estimator {
   const ParticleFilter& filter() const { return pf_; }
   /// Particles spread over the map when a measurement model judges the filter lost.
   void setRelocaliseParticles(int n) { relocalise_n_ = n; }
+  /// A fresh filter of this one's make-up whose a1-a4 are scaled by `motion_scale`, drawing
+  /// from `seed`, without a learning start (a_scale=auto's trials); set by the builder.
+  using TrialFactory =
+      std::function<std::unique_ptr<ParticleLocalizer>(double motion_scale, uint64_t seed)>;
+  void setTrialFactory(TrialFactory make) { make_trial_ = std::move(make); }
+  /// On a fresh filter: takes the `learnt` range model, filters `events` and returns the log of
+  /// their measurements' marginal likelihood (ParticleFilter::logEvidence).
+  double logEvidenceOver(const EstimatorStatistics& learnt, const std::vector<Event>& events);
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
@@ -55,6 +64,9 @@ class ParticleLocalizer : public Estimator {
   std::optional<PoseEstimate> step(const Event& event);
   /// The calibration's learnt model to the parts.
   void learnt(const EstimatorStatistics& learnt);
+  /// a_scale=auto: the odometry noise's scale under which the learning start's measurements are
+  /// likeliest, each candidate filtered from the start by a trial filter.
+  void learnMotionScale(const EstimatorStatistics& learnt);
   /// A measurement model judged the filter lost: spread particles over the map again.
   void relocalise();
   std::optional<PoseEstimate> finishEpoch();
@@ -74,6 +86,7 @@ class ParticleLocalizer : public Estimator {
   double epoch_t_ = 0.0;
   bool epoch_open_ = false;
   int relocalise_n_ = 0;  ///< particles for relocalising (the LiDAR part's relocalise_n)
+  TrialFactory make_trial_;
   // Motion between odometry increments (carryTo): the last increment's time, its span and its
   // twist per second, the time the particles stand at, and the motion carried since it.
   double odo_t_ = NAN, odo_span_ = 0.0, cloud_t_ = NAN;
@@ -106,11 +119,11 @@ struct PfMethodParams {
 };
 
 namespace detail {
-std::unique_ptr<Estimator> buildParticleLocalizer(const ParticleCoreParams& core,
-                                                  const EstimatorContext& context,
-                                                  const LidarPartParams* lidar,
-                                                  const UwbPartParams* uwb,
-                                                  const SwarmPartParams* swarm);
+std::unique_ptr<ParticleLocalizer> buildParticleLocalizer(const ParticleCoreParams& core,
+                                                          const EstimatorContext& context,
+                                                          const LidarPartParams* lidar,
+                                                          const UwbPartParams* uwb,
+                                                          const SwarmPartParams* swarm);
 }  // namespace detail
 
 /// Builds the localiser from the parts its parameters name.

@@ -125,6 +125,12 @@ class ParticleFilter {
   const std::vector<double>& weights() const { return w_; }
   Rng& rng() { return rng_; }
   long resamples() const { return resamples_; }
+  void setMotion(const MotionNoise& motion) { params_.motion = motion; }
+  /// The log of the measurements' marginal likelihood, p(z_1..z_k | odometry), summed over the
+  /// normalisations since the last reset: each adds the log of the weights' sum against what
+  /// they summed to after the previous one (1 once normalised, n once resampled or drawn).
+  double logEvidence() const { return log_evidence_; }
+  void resetEvidence() { log_evidence_ = 0.0; }
 
  private:
   ParticleFilterParams params_;
@@ -140,6 +146,8 @@ class ParticleFilter {
   std::vector<int> indices_;
   double last_ess_ = 0.0;
   long resamples_ = 0;
+  double log_evidence_ = 0.0;
+  double log_sum_before_ = 0.0;  ///< log of the weights' sum after the last normalisation
   bool initialised_ = false;
 };
 

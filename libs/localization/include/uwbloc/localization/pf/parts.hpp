@@ -39,6 +39,8 @@ struct ParticleCoreParams {
   ResamplerKind resampler = ResamplerKind::kSystematic;
   double ess = 0.5;                     ///< resample when ESS / N < this
   MotionNoise motion;                   ///< odometry sampling noise
+  /// a1-a4 are multiplied by this; auto: chosen at the learning start (see ParticleLocalizer).
+  AutoDouble motion_scale{1.0};
   InitMode init = InitMode::kTracking;  ///< box around the start pose, or global
   double init_xy = 0.5;                 ///< tracking box half-width [m]
   double init_theta_deg = 20.0;         ///< tracking box half-width [deg]
@@ -56,6 +58,12 @@ struct ParticleCoreParams {
     v("a2", motion.alpha2, "odometry noise: rotation per metre [rad/m]");
     v("a3", motion.alpha3, "odometry noise: translation per metre");
     v("a4", motion.alpha4, "odometry noise: translation per radian [m/rad]");
+    v("a_scale", motion_scale,
+      "a1-a4 are multiplied by this; auto: the scale among 2, 1, 1/2 ... 1/16 under which the "
+      "ranges of the learning start are likeliest (the filter's marginal likelihood, run twice "
+      "per scale over those seconds once the range model is learnt, from 1 down while it "
+      "rises); 1 unless another beats it by more than ln 20 and 3 times the runs' own Monte "
+      "Carlo spread; 1 without a learning start");
     v("init", init, "tracking or global");
     v("init_xy", init_xy, "tracking: half-width of the start box [m]");
     v("init_theta", init_theta_deg, "tracking: half-width of the start box [deg]");
