@@ -46,9 +46,6 @@ class ParticleLocalizer : public Estimator {
   using TrialFactory =
       std::function<std::unique_ptr<ParticleLocalizer>(double motion_scale, uint64_t seed)>;
   void setTrialFactory(TrialFactory make) { make_trial_ = std::move(make); }
-  /// On a fresh filter: takes the `learnt` range model, filters `events` and returns the log of
-  /// their measurements' marginal likelihood (ParticleFilter::logEvidence).
-  double logEvidenceOver(const EstimatorStatistics& learnt, const std::vector<Event>& events);
 
  protected:
   std::optional<PoseEstimate> doProcess(const Event& event) override;
@@ -67,6 +64,9 @@ class ParticleLocalizer : public Estimator {
   /// a_scale=auto: the odometry noise's scale under which the learning start's measurements are
   /// likeliest, each candidate filtered from the start by a trial filter.
   void learnMotionScale(const EstimatorStatistics& learnt);
+  /// On a fresh trial filter: takes the `learnt` range model, filters `events` and returns the
+  /// log of their measurements' marginal likelihood (ParticleFilter::logEvidence).
+  double logEvidenceOver(const EstimatorStatistics& learnt, const std::vector<Event>& events);
   /// A measurement model judged the filter lost: spread particles over the map again.
   void relocalise();
   std::optional<PoseEstimate> finishEpoch();
