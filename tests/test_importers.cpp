@@ -95,6 +95,32 @@ TEST(Carmen, AReadingCountThatIsNoCountIsAnErrorNamingTheLine) {
       {log + ":2", "num_readings", "-34.2"});
 }
 
+TEST(Carmen, RaysAreAWholeFractionOf180DegreesApart) {
+  // 180 rays are 1 degree apart from -90 (the last at +89), 181 rays 1 degree apart from -90 to
+  // +90 inclusive, 360 rays 0.5 degree apart.
+  for (const auto& [n, step_deg, last_deg] :
+       {std::tuple{180, 1.0, 89.0}, std::tuple{181, 1.0, 90.0}, std::tuple{360, 0.5, 89.5}}) {
+    std::ostringstream line;
+    line << "FLASER " << n;
+    for (int i = 0; i < n; ++i) line << " 2.0";
+    line << " 1 2 0 1 2 0 1.0 host 1.0\n";
+    const auto dir = test::scratchDir();
+    test::writeText(dir / "x.log", odom(0.5, {1, 2, 0}) + line.str());
+    data::importCarmen((dir / "x.log").string(), (dir / "out").string());
+    const auto rec = data::readRawlog((dir / "out" / "carmen.rawlog").string());
+    const loc::LaserScan* scan = nullptr;
+    for (const auto& e : rec.events)
+      if (const auto* s = std::get_if<loc::LaserScan>(&e)) scan = s;
+    ASSERT_NE(scan, nullptr) << n;
+    ASSERT_EQ(scan->ranges.size(), static_cast<size_t>(n));
+    // The rawlog keeps a scan symmetric about the sensor's axis and turns the sensor instead.
+    const double first = scan->sensor_pose.z() + scan->angle_min;
+    EXPECT_NEAR(first * 180.0 / M_PI, -90.0, 1e-4) << n;
+    EXPECT_NEAR(scan->angle_increment * 180.0 / M_PI, step_deg, 1e-5) << n;
+    EXPECT_NEAR((first + (n - 1) * scan->angle_increment) * 180.0 / M_PI, last_deg, 1e-3) << n;
+  }
+}
+
 TEST(Rawlog, NegativeAndOutOfOrderStampsAreRejectedAndCounted) {
   std::vector<loc::Event> events;
   for (int k = 0; k < 5; ++k) {

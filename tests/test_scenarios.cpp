@@ -152,11 +152,11 @@ TEST(Carmen, ImportAndAugmentIntel) {
   EXPECT_LT(iah.metrics.rmse_2d, 0.75 * unbounded.metrics.rmse_2d);
   // 83 % of these ranges are NLOS, each long by an exponential excess: the particle filters'
   // learning start finds the LOS / NLOS mixture and takes it as the range likelihood. fused-pf
-  // learns it at lidar-mcl's pose over the first 120 s (79 % NLOS, +0.44 m) and scores 0.106 m
-  // (0.163 m with every range counted as independent); learnt from the smoothing's residuals
-  // (calib_lidar=0), whose path the NLOS ranges bent, 0.326 m and with a Gaussian (mixture=0)
-  // 0.453 m, both measured before the ranges were counted by their correlation (lidar-mcl
-  // 0.113 m).
+  // learns it at lidar-mcl's pose over the first 120 s (79 % NLOS, +0.44 m) and scores 0.116 m
+  // (0.170 m with every range counted as independent; lidar-mcl 0.123 m; 0.106, 0.163 and
+  // 0.113 m before the import spaced the rays 1 degree apart); learnt from the smoothing's
+  // residuals (calib_lidar=0), whose path the NLOS ranges bent, 0.326 m and with a Gaussian
+  // (mixture=0) 0.453 m, both measured before the ranges were counted by their correlation.
   const auto fused = eval::evaluateMethod(ds, "fused-pf", 1, 1);
   std::printf("[ CARMEN   ] intel + 6 simulated anchors: fused-pf rmse %.3f m\n",
               fused.metrics.rmse_2d);
@@ -181,7 +181,7 @@ TEST(Carmen, ImportAndAugmentIntel) {
   EXPECT_LE(fused.metrics.rmse_2d, 1.05 * lidar.metrics.rmse_2d);
   // PF-IBAS's 40 particles, its swarm's first step the search box's width (ibas_step=auto, as
   // the paper's eq. 12 starts from the search region): no worse than the LiDAR alone either,
-  // and better than with the step at 0.1 m (0.096 against 0.108 m; on the benchmark's intel and
+  // and better than with the step at 0.1 m (0.093 against 0.114 m; on the benchmark's intel and
   // aces layouts, 0.1 m put its worst seed at 1.11x the LiDAR's mean).
   const auto ibas = eval::evaluateMethod(ds, "pf-ibas", 1, 1);
   const auto short_step = eval::evaluateMethod(ds, "pf-ibas:ibas_step=0.1", 1, 1);

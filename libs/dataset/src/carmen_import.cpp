@@ -38,15 +38,20 @@ std::string readAll(const std::string& path) {
   return text;
 }
 
-// FLASER n r1..rn ...: a 180-degree scan of n rays, right to left; readings of 80 m and more
-// are no returns.
+// FLASER n r1..rn ...: a scan of n rays, right to left from -90 degrees; readings of 80 m and
+// more are no returns. The rays are a whole fraction of 180 degrees apart: an odd n spans
+// -90..+90 (181 rays at 1 degree, 361 at 0.5), an even n stops one step short of +90 (180 rays
+// at 1 degree, -90..+89). Measured on intel and aces (180 rays): with 180/179 degrees between
+// rays, lidar-icp's turns came out 0.33 % and 0.67 % larger than the reference's; at 1 degree,
+// -0.23 % and +0.10 % (README, lidar-icp).
 template <class Num>
 loc::LaserScan flaserScan(size_t n, double t, Num& num) {
   loc::LaserScan scan;
   scan.t = t;
   scan.max_range = 81.0f;
   scan.angle_min = static_cast<float>(-M_PI / 2);
-  scan.angle_increment = static_cast<float>(n > 1 ? M_PI / (n - 1) : 0.0);
+  const size_t steps = n % 2 == 1 ? n - 1 : n;
+  scan.angle_increment = static_cast<float>(steps > 0 ? M_PI / static_cast<double>(steps) : 0.0);
   scan.ranges.resize(n);
   scan.valid.resize(n);
   for (size_t i = 0; i < n; ++i) {

@@ -330,14 +330,6 @@ long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, Imp
       scan.valid.push_back(ok ? 1 : 0);
       if (ok) longest = std::max(longest, static_cast<float>(r));
     }
-    // A rawlog scan is symmetric about the sensor's axis: an asymmetric one turns the sensor by
-    // its centre angle instead (the same rays).
-    const double centre =
-        scan.angle_min + 0.5 * static_cast<double>(scan.ranges.size() - 1) * scan.angle_increment;
-    if (std::abs(centre) > 1e-6) {
-      scan.sensor_pose.z() = wrapAngle(scan.sensor_pose.z() + centre);
-      scan.angle_min = static_cast<float>(scan.angle_min - centre);
-    }
     scans.push_back(std::move(scan));
   }
   const float max_range = req.scan_max_range ? static_cast<float>(*req.scan_max_range) : longest;

@@ -35,9 +35,15 @@ loc::LaserScan fromMrpt(const mrpt::obs::CObservation2DRangeScan& obs, double t)
 
 mrpt::obs::CObservation2DRangeScan toMrpt(const loc::LaserScan& s) {
   mrpt::obs::CObservation2DRangeScan obs;
-  obs.sensorPose = mrpt::poses::CPose3D(s.sensor_pose.x(), s.sensor_pose.y(), s.sensor_height,
-                                        s.sensor_pose.z(), 0, 0);
   const size_t n = s.ranges.size();
+  // A rawlog scan is symmetric about the sensor's axis: an asymmetric one (a CARMEN scan of 180
+  // rays from -90 to +89 degrees) turns the sensor by its centre angle instead, the same rays.
+  const double centre =
+      n > 0 ? s.angle_min + 0.5 * static_cast<double>(n - 1) * s.angle_increment : 0.0;
+  const double yaw =
+      std::abs(centre) > 1e-6 ? loc::wrapAngle(s.sensor_pose.z() + centre) : s.sensor_pose.z();
+  obs.sensorPose =
+      mrpt::poses::CPose3D(s.sensor_pose.x(), s.sensor_pose.y(), s.sensor_height, yaw, 0, 0);
   obs.resizeScan(n);
   obs.rightToLeft = s.angle_increment >= 0.0f;
   obs.aperture = std::abs(s.angle_increment) * static_cast<float>(n > 1 ? n - 1 : 1);

@@ -95,6 +95,8 @@ const std::vector<ParamLimit>& paramLimits() {
       {"dist", 0, 1e3, true, "[m]"},
       {"ang", 0, 10, true, "[rad]"},
       {"min_goodness", 0, 1, false, ""},
+      {"search", 0, 180, false, "[deg] (0: off)"},
+      {"line_dist", 0, 100, false, "[m] (0: point-to-point only)"},
       {"heading_offset", -10, 10, false, "[rad]"},
       {"hinf", 0, 1e6, false, "the H-infinity bound over the smallest feasible (0: off)"},
       {"k0", 0, 100, true, "[std]"},

@@ -6,7 +6,10 @@
 #include <mrpt/poses/CPose2D.h>
 #include <mrpt/tfest/se2.h>
 
+#include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace uwbloc::loc {
 
@@ -21,6 +24,11 @@ namespace {
 constexpr size_t kMatchDecimation = 5;
 // A step below this [m, rad] means the current threshold has converged.
 constexpr float kMinStep = 1e-6f;
+// Fewer scan points (or point-to-line matches) than this and ICP is not tried.
+constexpr size_t kMinPoints = 10;
+// The spacing of the headings tried about a poor seed [deg]: ICP from the seed converges within
+// about this much of the true heading on the logs measured (README, lidar-icp).
+constexpr double kSearchStepDeg = 20.0;
 
 struct IcpResult {
   Eigen::Vector3d pose;  ///< the scan's pose in the keyframe's frame
@@ -79,6 +87,82 @@ IcpResult alignScan(const mrpt::maps::CSimplePointsMap& keyframe,
   return {{pose.x(), pose.y(), pose.phi()}, extra.correspondencesRatio};
 }
 
+// Point-to-line refinement (PL-ICP's metric, Censi 2008) of the point-to-point answer: each scan
+// point within `max_dist` of its nearest keyframe point is matched to the line through that point
+// and its nearer neighbour along the keyframe scan (not farther than `max_dist` from it: no line
+// across a gap), and the pose minimises the squared distances to those lines by Gauss-Newton,
+// each residual Huber-weighted at 1.345 robust std. Point-to-point matching between scans whose
+// rays fall on a wall at different places pulls the pose by the rays' spacing; the distance to
+// the wall's line does not.
+Eigen::Vector3d refinePointToLine(const mrpt::maps::CSimplePointsMap& keyframe,
+                                  const mrpt::maps::CSimplePointsMap& scan, Eigen::Vector3d x,
+                                  double max_dist) {
+  const Eigen::Vector3d start = x;
+  const size_t nk = keyframe.size();
+  if (nk < 2) return x;
+  constexpr int kMaxIterations = 20;
+  // Converged once a step moves less than this [m, rad]: a tenth of a millimetre at 10 m.
+  constexpr double kLineStepXy = 1e-4, kLineStepTheta = 1e-5;
+  constexpr double kDamping = 1e-6;  // of the normal matrix's trace, on its diagonal
+  std::vector<double> abs_r;
+  struct Row {
+    Eigen::Vector3d j;
+    double r;
+  };
+  std::vector<Row> rows;
+  for (int it = 0; it < kMaxIterations; ++it) {
+    rows.clear();
+    const double c = std::cos(x.z()), s = std::sin(x.z());
+    for (size_t i = 0; i < scan.size(); ++i) {
+      float px, py, pz;
+      scan.getPoint(i, px, py, pz);
+      const Eigen::Vector2d p(px, py);
+      const Eigen::Vector2d q(c * p.x() - s * p.y() + x.x(), s * p.x() + c * p.y() + x.y());
+      float ox, oy, d2;
+      const size_t k = keyframe.kdTreeClosestPoint2D(static_cast<float>(q.x()),
+                                                     static_cast<float>(q.y()), ox, oy, d2);
+      if (d2 > max_dist * max_dist) continue;
+      const Eigen::Vector2d a(ox, oy);
+      Eigen::Vector2d b = a;
+      double best = HUGE_VAL;
+      for (const size_t nb : {k - 1, k + 1}) {
+        if (k == 0 && nb == k - 1) continue;
+        if (nb >= nk) continue;
+        float bx, by, bz;
+        keyframe.getPoint(nb, bx, by, bz);
+        const Eigen::Vector2d cand(bx, by);
+        const double d = (cand - q).squaredNorm();
+        if (d < best && (cand - a).norm() <= max_dist) best = d, b = cand;
+      }
+      if (!(best < HUGE_VAL)) continue;
+      const Eigen::Vector2d t = (b - a).normalized();
+      const Eigen::Vector2d n(-t.y(), t.x());
+      const Eigen::Vector2d dp(-s * p.x() - c * p.y(), c * p.x() - s * p.y());
+      rows.push_back({Eigen::Vector3d(n.x(), n.y(), n.dot(dp)), n.dot(q - a)});
+    }
+    if (rows.size() < kMinPoints) return x;
+    abs_r.clear();
+    for (const Row& r : rows) abs_r.push_back(std::abs(r.r));
+    std::nth_element(abs_r.begin(), abs_r.begin() + abs_r.size() / 2, abs_r.end());
+    const double k = 1.345 * std::max(1.4826 * abs_r[abs_r.size() / 2], 1e-4);
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (const Row& r : rows) {
+      const double w = std::abs(r.r) <= k ? 1.0 : k / std::abs(r.r);
+      H += w * r.j * r.j.transpose();
+      g += w * r.j * r.r;
+    }
+    // A direction the lines leave free (a corridor's length) keeps the point-to-point answer.
+    H.diagonal().array() += kDamping * H.trace();
+    const Eigen::Vector3d step = H.ldlt().solve(-g);
+    if (!step.allFinite()) return start;
+    x += step;
+    if ((x - start).head<2>().norm() > max_dist) return start;
+    if (step.head<2>().norm() < kLineStepXy && std::abs(step.z()) < kLineStepTheta) break;
+  }
+  return x;
+}
+
 // Scan endpoints in the robot frame as an MRPT point map.
 std::unique_ptr<mrpt::maps::CSimplePointsMap> toPoints(const LaserScan& scan,
                                                        const LidarIcpParams& p) {
@@ -98,28 +182,51 @@ LidarIcp::LidarIcp(const LidarIcpParams& params, const EstimatorContext& context
     : params_(params),
       pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())),
       keyframe_pose_(pose_),
+      start_t_(context.initial_pose ? context.initial_time : -1e300),
       impl_(std::make_unique<Impl>()) {}
 
 LidarIcp::~LidarIcp() = default;
 
 std::optional<PoseEstimate> LidarIcp::doProcess(const Event& event) {
   if (const auto* odo = std::get_if<OdometryIncrement>(&event)) {
-    if (odo->delta.allFinite())
+    if (odo->t <= start_t_)
+      countRejection("odometry_before_start");
+    else if (odo->delta.allFinite())
       odometry_since_keyframe_ = composePose(odometry_since_keyframe_, odo->delta);
     return std::nullopt;
   }
   const auto* scan = std::get_if<LaserScan>(&event);
   if (!scan) return std::nullopt;
+  if (scan->t < start_t_) {
+    countRejection("scan_before_start");
+    return std::nullopt;
+  }
   auto current = toPoints(*scan, params_);
-  const bool usable = current->size() >= 10;
+  const bool usable = current->size() >= kMinPoints;
   // The pose of this scan relative to the keyframe: ICP seeded by the odometry, or the odometry.
   Eigen::Vector3d rel = odometry_since_keyframe_;
   if (!usable) {
     countRejection("scan_too_few_points");
   } else if (impl_->previous) {
-    const IcpResult icp = alignScan(*impl_->previous, *current, odometry_since_keyframe_, params_);
+    IcpResult icp = alignScan(*impl_->previous, *current, odometry_since_keyframe_, params_);
+    if (icp.goodness < params_.min_goodness && params_.search_deg > 0) {
+      IcpResult best = icp;
+      for (double off = kSearchStepDeg; off <= params_.search_deg + 1e-9; off += kSearchStepDeg)
+        for (double sign : {-1.0, 1.0}) {
+          Eigen::Vector3d seed = odometry_since_keyframe_;
+          seed.z() += sign * off * M_PI / 180.0;
+          const IcpResult tried = alignScan(*impl_->previous, *current, seed, params_);
+          if (tried.pose.allFinite() && tried.goodness > best.goodness) best = tried;
+        }
+      if (best.goodness >= params_.min_goodness) {
+        ++stats_.events["icp_heading_searched"];
+        icp = best;
+      }
+    }
     if (icp.goodness < params_.min_goodness || !icp.pose.allFinite())
       countRejection("icp_low_goodness");
+    else if (params_.line_dist > 0)
+      rel = refinePointToLine(*impl_->previous, *current, icp.pose, params_.line_dist);
     else
       rel = icp.pose;
   }

@@ -2,7 +2,8 @@
 // keyframe scan, seeded with the odometry accumulated since that keyframe. A new keyframe starts
 // when the robot has moved `kf_dist` or turned `kf_angle` from the last one: aligning every scan to
 // its predecessor would add each alignment's small error (a few mrad) at the scan rate. It still
-// accumulates error like any odometry: this is the PF-IBAS paper's LiDAR-only baseline.
+// accumulates error like any odometry: this is the PF-IBAS paper's LiDAR-only baseline. It starts
+// at the start pose's time: the odometry and scans before it are skipped and counted.
 #pragma once
 
 #include <memory>
@@ -23,6 +24,8 @@ struct LidarIcpParams {
   double min_goodness = 0.4;        ///< below this ICP is not trusted: odometry is used instead
   double kf_dist = 0.5;             ///< new keyframe after this translation [m]
   double kf_angle_deg = 15.0;       ///< new keyframe after this rotation [deg]
+  double search_deg = 40.0;  ///< on a poor fit, headings tried about the seed, every 20 [deg]
+  double line_dist = 0.5;    ///< point-to-line refinement: matching distance [m]; 0: off
 
   template <class V>
   void visit(V&& v) {
@@ -37,6 +40,13 @@ struct LidarIcpParams {
     v("min_goodness", min_goodness, "fall back to odometry below this ICP goodness");
     v("kf_dist", kf_dist, "new keyframe after this translation [m] (0: every scan)");
     v("kf_angle", kf_angle_deg, "new keyframe after this rotation [deg]");
+    v("search", search_deg,
+      "when the fit from the odometry's seed is poor, the seed's heading is also tried this far "
+      "either side, every 20 deg, and the best fit kept [deg] (0: off)");
+    v("line_dist", line_dist,
+      "point-to-line refinement (PL-ICP's metric) of each alignment: the farthest a scan point "
+      "may lie from its nearest keyframe point, and two keyframe points from each other, to "
+      "make a line [m] (0: point-to-point only)");
   }
 };
 
@@ -54,6 +64,7 @@ class LidarIcp : public Estimator {
   Eigen::Vector3d pose_;
   Eigen::Vector3d keyframe_pose_;
   Eigen::Vector3d odometry_since_keyframe_ = Eigen::Vector3d::Zero();
+  double start_t_;  ///< the start pose's time: odometry and scans before it are skipped
   std::unique_ptr<Impl> impl_;
 };
 
