@@ -8,13 +8,70 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <deque>
+#include <iterator>
 #include <vector>
 
 namespace uwbloc::loc {
 
+namespace {
+
+// The points a scan is aligned to, each with its two neighbours along its own scan (NaN where it
+// has none): the point-to-line refinement's lines.
+struct LocalMap {
+  mrpt::maps::CSimplePointsMap points;
+  std::vector<std::array<Eigen::Vector2f, 2>> along;
+};
+
+}  // namespace
+
 struct LidarIcp::Impl {
-  std::unique_ptr<mrpt::maps::CSimplePointsMap> previous;
+  struct Keyframe {
+    Eigen::Vector2d position;             ///< where it was taken, in the estimate's frame
+    double heading = 0;                   ///< the heading it was taken at [rad]
+    double path = 0;                      ///< distance travelled when it was taken [m]
+    std::vector<Eigen::Vector2f> points;  ///< its scan's points, in the estimate's frame
+  };
+  std::deque<Keyframe> keyframes;  ///< the local map's keyframes, oldest first
+  double path = 0;                 ///< distance travelled from keyframe to keyframe [m]
+  std::unique_ptr<LocalMap> map;   ///< their points
+
+  // Adds a keyframe taken at `pose`, `moved` metres from the last, drops the keyframes the local
+  // map no longer holds (but the newest), and rebuilds the map.
+  void addKeyframe(const Eigen::Vector3d& pose, double moved,
+                   const mrpt::maps::CSimplePointsMap& scan, const LidarIcpParams& p) {
+    path += moved;
+    Keyframe kf{pose.head<2>(), pose.z(), path, std::vector<Eigen::Vector2f>(scan.size())};
+    for (size_t i = 0; i < scan.size(); ++i) {
+      float px, py, pz;
+      scan.getPoint(i, px, py, pz);
+      kf.points[i] = transformPoint(pose, Eigen::Vector2d(px, py)).cast<float>();
+    }
+    keyframes.push_back(std::move(kf));
+    // Dropped: a keyframe out of the map's reach, or one the new keyframe replaces (taken within
+    // half a keyframe's step of it, so that turning on the spot does not grow the map forever).
+    const auto dropped = [&](const Keyframe& k) {
+      const double apart = (k.position - pose.head<2>()).norm();
+      return p.map_path <= 0 || p.map_radius <= 0 || path - k.path > p.map_path ||
+             apart > p.map_radius ||
+             (apart < 0.5 * p.kf_dist &&
+              std::abs(wrapAngle(k.heading - pose.z())) < 0.5 * p.kf_angle_deg * M_PI / 180.0);
+    };
+    keyframes.erase(std::remove_if(keyframes.begin(), std::prev(keyframes.end()), dropped),
+                    std::prev(keyframes.end()));
+    // Every keyframe's every point: thinning the union to one point per `min_dist` cell cost
+    // accuracy on every log measured (README, lidar-icp).
+    map = std::make_unique<LocalMap>();
+    const Eigen::Vector2f none = Eigen::Vector2f::Constant(NAN);
+    for (const Keyframe& k : keyframes)
+      for (size_t i = 0; i < k.points.size(); ++i) {
+        map->points.insertPoint(k.points[i].x(), k.points[i].y(), 0.0f);
+        map->along.push_back(
+            {i > 0 ? k.points[i - 1] : none, i + 1 < k.points.size() ? k.points[i + 1] : none});
+      }
+  }
 };
 
 namespace {
@@ -29,6 +86,8 @@ constexpr size_t kMinPoints = 10;
 // The spacing of the headings tried about a poor seed [deg]: ICP from the seed converges within
 // about this much of the true heading on the logs measured (README, lidar-icp).
 constexpr double kSearchStepDeg = 20.0;
+// A searched heading that differs from the seed's fit by more than this is counted [deg].
+constexpr double kSearchChangedDeg = 1.0;
 
 struct IcpResult {
   Eigen::Vector3d pose;  ///< the scan's pose in the keyframe's frame
@@ -63,10 +122,10 @@ IcpResult alignScan(const mrpt::maps::CSimplePointsMap& keyframe,
   do {
     match.angularDistPivotPoint = mrpt::math::TPoint3D(pose.x(), pose.y(), 0.0);
     keyframe.determineMatching2D(&scan, pose, pairs, match, extra);
-    approaching = !pairs.empty();
+    mrpt::math::TPose2D solved;
+    // se2_l2 needs two pairs, and leaves `solved` at the origin when it fails.
+    approaching = pairs.size() >= 2 && mrpt::tfest::se2_l2(pairs, solved);
     if (approaching) {
-      mrpt::math::TPose2D solved;
-      mrpt::tfest::se2_l2(pairs, solved);
       pose = mrpt::poses::CPose2D(solved);
       const bool converged = std::abs(last.x() - pose.x()) <= kMinStep &&
                              std::abs(last.y() - pose.y()) <= kMinStep &&
@@ -94,12 +153,10 @@ IcpResult alignScan(const mrpt::maps::CSimplePointsMap& keyframe,
 // each residual Huber-weighted at 1.345 robust std. Point-to-point matching between scans whose
 // rays fall on a wall at different places pulls the pose by the rays' spacing; the distance to
 // the wall's line does not.
-Eigen::Vector3d refinePointToLine(const mrpt::maps::CSimplePointsMap& keyframe,
-                                  const mrpt::maps::CSimplePointsMap& scan, Eigen::Vector3d x,
-                                  double max_dist) {
+Eigen::Vector3d refinePointToLine(const LocalMap& map, const mrpt::maps::CSimplePointsMap& scan,
+                                  Eigen::Vector3d x, double max_dist) {
   const Eigen::Vector3d start = x;
-  const size_t nk = keyframe.size();
-  if (nk < 2) return x;
+  if (map.points.size() < 2) return x;
   constexpr int kMaxIterations = 20;
   // Converged once a step moves less than this [m, rad]: a tenth of a millimetre at 10 m.
   constexpr double kLineStepXy = 1e-4, kLineStepTheta = 1e-5;
@@ -119,18 +176,15 @@ Eigen::Vector3d refinePointToLine(const mrpt::maps::CSimplePointsMap& keyframe,
       const Eigen::Vector2d p(px, py);
       const Eigen::Vector2d q(c * p.x() - s * p.y() + x.x(), s * p.x() + c * p.y() + x.y());
       float ox, oy, d2;
-      const size_t k = keyframe.kdTreeClosestPoint2D(static_cast<float>(q.x()),
-                                                     static_cast<float>(q.y()), ox, oy, d2);
+      const size_t k = map.points.kdTreeClosestPoint2D(static_cast<float>(q.x()),
+                                                       static_cast<float>(q.y()), ox, oy, d2);
       if (d2 > max_dist * max_dist) continue;
       const Eigen::Vector2d a(ox, oy);
       Eigen::Vector2d b = a;
       double best = HUGE_VAL;
-      for (const size_t nb : {k - 1, k + 1}) {
-        if (k == 0 && nb == k - 1) continue;
-        if (nb >= nk) continue;
-        float bx, by, bz;
-        keyframe.getPoint(nb, bx, by, bz);
-        const Eigen::Vector2d cand(bx, by);
+      for (const Eigen::Vector2f& nb : map.along[k]) {
+        if (!nb.allFinite()) continue;
+        const Eigen::Vector2d cand = nb.cast<double>();
         const double d = (cand - q).squaredNorm();
         if (d < best && (cand - a).norm() <= max_dist) best = d, b = cand;
       }
@@ -203,38 +257,48 @@ std::optional<PoseEstimate> LidarIcp::doProcess(const Event& event) {
   }
   auto current = toPoints(*scan, params_);
   const bool usable = current->size() >= kMinPoints;
-  // The pose of this scan relative to the keyframe: ICP seeded by the odometry, or the odometry.
+  // The pose of this scan relative to the keyframe: ICP against the local map, seeded by the
+  // odometry, or the odometry.
   Eigen::Vector3d rel = odometry_since_keyframe_;
   if (!usable) {
     countRejection("scan_too_few_points");
-  } else if (impl_->previous) {
-    IcpResult icp = alignScan(*impl_->previous, *current, odometry_since_keyframe_, params_);
-    if (icp.goodness < params_.min_goodness && params_.search_deg > 0) {
+  } else if (impl_->map) {
+    const LocalMap& local = *impl_->map;
+    const mrpt::maps::CSimplePointsMap& map = local.points;
+    const Eigen::Vector3d seed = composePose(keyframe_pose_, odometry_since_keyframe_);
+    IcpResult icp = alignScan(map, *current, seed, params_);
+    // The odometry's heading is least trusted where it turned: there, and on a poor fit, the
+    // headings about the seed are tried too.
+    const bool turned =
+        std::abs(odometry_since_keyframe_.z()) > params_.search_turn_deg * M_PI / 180.0;
+    if ((icp.goodness < params_.min_goodness || turned) && params_.search_deg > 0) {
       IcpResult best = icp;
       for (double off = kSearchStepDeg; off <= params_.search_deg + 1e-9; off += kSearchStepDeg)
         for (double sign : {-1.0, 1.0}) {
-          Eigen::Vector3d seed = odometry_since_keyframe_;
-          seed.z() += sign * off * M_PI / 180.0;
-          const IcpResult tried = alignScan(*impl_->previous, *current, seed, params_);
+          Eigen::Vector3d tried_seed = seed;
+          tried_seed.z() += sign * off * M_PI / 180.0;
+          const IcpResult tried = alignScan(map, *current, tried_seed, params_);
           if (tried.pose.allFinite() && tried.goodness > best.goodness) best = tried;
         }
-      if (best.goodness >= params_.min_goodness) {
-        ++stats_.events["icp_heading_searched"];
+      if (best.goodness >= params_.min_goodness && best.goodness > icp.goodness) {
+        if (std::abs(wrapAngle(best.pose.z() - icp.pose.z())) > kSearchChangedDeg * M_PI / 180.0)
+          ++stats_.events["icp_heading_searched"];
         icp = best;
       }
     }
     if (icp.goodness < params_.min_goodness || !icp.pose.allFinite())
       countRejection("icp_low_goodness");
-    else if (params_.line_dist > 0)
-      rel = refinePointToLine(*impl_->previous, *current, icp.pose, params_.line_dist);
     else
-      rel = icp.pose;
+      rel = relativePose(keyframe_pose_,
+                         params_.line_dist > 0
+                             ? refinePointToLine(local, *current, icp.pose, params_.line_dist)
+                             : icp.pose);
   }
   pose_ = composePose(keyframe_pose_, rel);
   const bool moved = rel.head<2>().norm() >= params_.kf_dist ||
                      std::abs(rel.z()) >= params_.kf_angle_deg * M_PI / 180.0;
-  if (usable && (!impl_->previous || moved)) {
-    impl_->previous = std::move(current);
+  if (usable && (!impl_->map || moved)) {
+    impl_->addKeyframe(pose_, rel.head<2>().norm(), *current, params_);
     keyframe_pose_ = pose_;
     odometry_since_keyframe_ = Eigen::Vector3d::Zero();
     // Re-seed from the estimate: the odometry since the keyframe restarts at zero.
