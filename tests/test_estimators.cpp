@@ -1085,14 +1085,16 @@ TEST(PointFilters, RangeFoldByHand) {
 // fold (fold_blind, the default), the filters carry the position across on their velocity.
 // Measured (without the manifest's sigma / with it): uwb-ckf 0.231 / 0.272 -> 0.189 / 0.198 m,
 // uwb-srukf 0.226 / 0.268 -> 0.184 / 0.191, uwb-hinf-ckf 0.255 / 0.327 -> 0.191 / 0.199,
-// uwb-iahckf 0.259 / 0.263 -> 0.238 / 0.250, federated-ekf 1.078 / 1.069 -> 0.232 / 0.383 m.
+// uwb-iahckf 0.259 / 0.263 -> 0.238 / 0.250, federated-ekf 1.078 / 1.069 -> 0.201 / 0.204 m
+// (0.232 / 0.383 m with the fold judged on each local filter's spread, P / beta_i: wider than the
+// estimate's, it found folds 2 m from the line and blinded beacon 2's ranges along x there).
 TEST(PointFilters, CarryThePositionAcrossTheFoldOfTwoAnchors) {
   auto ds = data::loadDataset(std::string(UWBLOC_SOURCE_DIR) + "/datasets/mrpt_uwb_demo.ini", "");
   const std::map<std::string, double> bound = {{"uwb-ckf", 0.22},
                                                {"uwb-srukf", 0.22},
                                                {"uwb-hinf-ckf", 0.22},
                                                {"uwb-iahckf", 0.27},
-                                               {"federated-ekf", 0.42}};
+                                               {"federated-ekf", 0.22}};
   for (const bool manifest_sigma : {true, false}) {
     if (!manifest_sigma) ds.manifest.uwb_sigma.reset();
     for (const auto& [m, most] : bound) {

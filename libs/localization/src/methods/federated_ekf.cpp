@@ -59,6 +59,7 @@ bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
     }
     l.t = t;
   }
+  if (t > t_) this->predictTo(t);  // the master too, for the fold test (fuse() replaces it)
   t_ = t;
   Local& local = locals_[g->second];
   typename Base::Jacobian hj;
@@ -70,8 +71,7 @@ bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
       kalman::inGate(kalman::innovate<N, 1>(local.p, y, hj, rv), uwb::ChiSquareGate(params_.gate)));
   if (used) {
     if (fold_blind_) {
-      const auto fold =
-          rangeFold(kalman::cubaturePoints<N>(local.x, local.p), local.x, r, std::sqrt(rv(0)));
+      const auto fold = rangeFold(kalman::cubaturePoints<N>(x_, p_), x_, r, std::sqrt(rv(0)));
       if (fold) {
         ++this->stats_.events["blind_across_fold"];
         Base::blindAlong(hj, *fold);

@@ -10,10 +10,12 @@
 // paper's federated filter fuses a UWB and an INS sub-filter; without an IMU the sub-filters are
 // anchor groups, which keeps the decentralised structure (and its information loss). On a robot
 // with two tags or more the local filters hold uwb-ekf's pose state (N = 6, uwb_ekf.hpp). A range
-// that folds over a local filter's spread (rangeFold, on its cubature points: the tag near the
-// line through two anchors) updates it blind across the fold (`fold_blind`): each local runs on
-// a share of the information (P / beta_i), so its spread is wider than uwb-ekf's and the slope
-// at its mean threw it across the line of beacons 2 and 3 on the MRPT demo.
+// that folds over the fused estimate's spread (rangeFold, on the master's cubature points: the
+// tag near the line through two anchors) updates the local filter blind across the fold
+// (`fold_blind`): each local runs on a share of the information (P / beta_i), so the slope at its
+// mean threw it across the line of beacons 2 and 3 on the MRPT demo. The fold is judged on the
+// master's spread, not the local's: that one is wider by 1 / beta_i, and on it every range of an
+// anchor 2 m off the line folded, its update blinded along the anchor's own direction.
 #pragma once
 
 #include <vector>
