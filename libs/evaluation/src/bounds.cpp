@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <map>
 
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/localization/motion_models.hpp"
@@ -24,6 +25,26 @@ std::optional<Eigen::Matrix2d> staticCrlb(const std::vector<uwb::Anchor>& anchor
   return info.inverse();
 }
 
+std::optional<Eigen::Matrix2d> staticCrlbOfPose(const std::vector<uwb::Anchor>& anchors,
+                                                const Eigen::Vector3d& pose,
+                                                const std::vector<Eigen::Vector3d>& tags,
+                                                double sigma) {
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& tag : tags)
+    for (const auto& a : anchors) {
+      Eigen::RowVector3d h;
+      uwb::predictRange(pose, tag, a.position, &h);
+      if (h.allFinite()) info += h.transpose() * h / (sigma * sigma);
+    }
+  const Eigen::Matrix2d pp = info.topLeftCorner<2, 2>();
+  Eigen::Matrix2d position = pp;  // the Schur complement of the heading's block
+  if (info(2, 2) > 1e-12 * std::max(1.0, pp.trace()))
+    position -= info.topRightCorner<2, 1>() * info.bottomLeftCorner<1, 2>() / info(2, 2);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(position);
+  if (es.eigenvalues()(0) <= 1e-12 * std::max(1.0, es.eigenvalues()(1))) return std::nullopt;
+  return position.inverse();
+}
+
 double BoundSeries::mean(double burn_in) const {
   if (t.empty()) return NAN;
   double sum = 0.0;
@@ -38,21 +59,28 @@ double BoundSeries::mean(double burn_in) const {
 
 namespace {
 
-// Tag height and lever arm of the robot's own tag, from the first such range.
-Eigen::Vector3d tagOnRobot(const data::Dataset& ds) {
+// Each tag on the robot (its place on the robot, from its first range), in order of tag id.
+std::vector<Eigen::Vector3d> tagsOnRobot(const data::Dataset& ds) {
+  std::map<int, Eigen::Vector3d> tags;
   for (const auto& e : ds.events)
-    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->on_robot) return r->tag_on_robot;
-  return Eigen::Vector3d::Zero();
+    if (const auto* r = std::get_if<uwb::Range>(&e); r && r->on_robot)
+      tags.emplace(r->tag_id, r->tag_on_robot);
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& [id, place] : tags) out.push_back(place);
+  if (out.empty()) out.push_back(Eigen::Vector3d::Zero());
+  return out;
 }
 
 }  // namespace
 
 BoundSeries staticCrlbSeries(const data::Dataset& ds, double sigma) {
   BoundSeries out;
-  const Eigen::Vector3d tag = tagOnRobot(ds);
+  const std::vector<Eigen::Vector3d> tags = tagsOnRobot(ds);
+  const Eigen::Vector3d& tag = tags.front();
   for (const auto& g : ds.ground_truth) {
     const Eigen::Vector3d tag_world = uwb::tagPosition(g.pose, tag);
-    const auto c = staticCrlb(ds.anchors, tag_world.head<2>(), tag.z(), sigma);
+    const auto c = tags.size() > 1 ? staticCrlbOfPose(ds.anchors, g.pose, tags, sigma)
+                                   : staticCrlb(ds.anchors, tag_world.head<2>(), tag.z(), sigma);
     out.t.push_back(g.t);
     out.position_variance.push_back(c ? c->trace() : NAN);
   }

@@ -15,6 +15,16 @@ namespace uwbloc::eval {
 std::optional<Eigen::Matrix2d> staticCrlb(const std::vector<uwb::Anchor>& anchors,
                                           const Eigen::Vector2d& p, double tag_z, double sigma);
 
+/// Static CRLB of a robot's planar position from one epoch of ranges of each of its tags (their
+/// places on the robot, `tags`) to `anchors`, its heading unknown too: the position block of
+/// J^-1, J = sum over tags and anchors of h^T h / sigma^2 with h = d range / d(x, y, theta) at
+/// `pose`. When no range depends on the heading (every lever arm zero), J's position block alone.
+/// Nothing when singular.
+std::optional<Eigen::Matrix2d> staticCrlbOfPose(const std::vector<uwb::Anchor>& anchors,
+                                                const Eigen::Vector3d& pose,
+                                                const std::vector<Eigen::Vector3d>& tags,
+                                                double sigma);
+
 struct BoundSeries {
   std::vector<double> t;
   std::vector<double> position_variance;  ///< trace of the 2x2 position block of the bound [m^2]
@@ -22,7 +32,8 @@ struct BoundSeries {
   double mean(double burn_in = 0.0) const;
 };
 
-/// Static CRLB at every ground-truth sample (the tag's position, all anchors in view).
+/// Static CRLB at every ground-truth sample, all anchors in view: of the tag's position with one
+/// tag on the robot (staticCrlb), of the robot's position with several (staticCrlbOfPose).
 BoundSeries staticCrlbSeries(const data::Dataset& dataset, double sigma);
 
 /// Posterior CRLB (Tichavský's recursion) for tracking along the true trajectory, with the
