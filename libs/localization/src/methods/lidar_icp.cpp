@@ -236,7 +236,7 @@ LidarIcp::LidarIcp(const LidarIcpParams& params, const EstimatorContext& context
     : params_(params),
       pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())),
       keyframe_pose_(pose_),
-      start_t_(context.initial_pose ? context.initial_time : -1e300),
+      start_t_(context.startTime()),
       impl_(std::make_unique<Impl>()) {}
 
 LidarIcp::~LidarIcp() = default;
@@ -303,6 +303,7 @@ std::optional<PoseEstimate> LidarIcp::doProcess(const Event& event) {
     odometry_since_keyframe_ = Eigen::Vector3d::Zero();
     // Re-seed from the estimate: the odometry since the keyframe restarts at zero.
   } else if (!usable && moved) {
+    impl_->path += rel.head<2>().norm();  // the distance the odometry alone covered
     keyframe_pose_ = pose_;
     odometry_since_keyframe_ = Eigen::Vector3d::Zero();
   } else {

@@ -3,8 +3,7 @@
 namespace uwbloc::loc {
 
 OdometryEstimator::OdometryEstimator(const OdometryParams& params, const EstimatorContext& context)
-    : pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())),
-      start_t_(context.initial_pose ? context.initial_time : -1e300) {
+    : pose_(context.initial_pose.value_or(Eigen::Vector3d::Zero())), start_t_(context.startTime()) {
   pose_.z() = wrapAngle(pose_.z() + params.heading_offset);
 }
 

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -101,6 +102,11 @@ struct EstimatorContext {
   std::vector<uwb::Anchor> anchors;
   std::optional<Eigen::Vector3d> initial_pose;
   double initial_time = 0.0;
+  /// The start pose's time, or -infinity without a start pose: a method that integrates from the
+  /// start pose skips what was recorded before it.
+  double startTime() const {
+    return initial_pose ? initial_time : -std::numeric_limits<double>::infinity();
+  }
   uint64_t seed = 1;
   std::shared_ptr<const OccupancyMap> map;  ///< the dataset's map, when it has one
   /// The dataset's measured LOS range noise, when its manifest states one: the default of
