@@ -78,9 +78,9 @@ BoundSeries staticCrlbSeries(const data::Dataset& ds, double sigma) {
   const std::vector<Eigen::Vector3d> tags = tagsOnRobot(ds);
   const Eigen::Vector3d& tag = tags.front();
   for (const auto& g : ds.ground_truth) {
-    const Eigen::Vector3d tag_world = uwb::tagPosition(g.pose, tag);
     const auto c = tags.size() > 1 ? staticCrlbOfPose(ds.anchors, g.pose, tags, sigma)
-                                   : staticCrlb(ds.anchors, tag_world.head<2>(), tag.z(), sigma);
+                                   : staticCrlb(ds.anchors, uwb::tagPosition(g.pose, tag).head<2>(),
+                                                tag.z(), sigma);
     out.t.push_back(g.t);
     out.position_variance.push_back(c ? c->trace() : NAN);
   }

@@ -38,11 +38,10 @@ struct LidarIcp::Impl {
   double path = 0;                 ///< distance travelled from keyframe to keyframe [m]
   std::unique_ptr<LocalMap> map;   ///< their points
 
-  // Adds a keyframe taken at `pose`, `moved` metres from the last, drops the keyframes the local
-  // map no longer holds (but the newest), and rebuilds the map.
-  void addKeyframe(const Eigen::Vector3d& pose, double moved,
-                   const mrpt::maps::CSimplePointsMap& scan, const LidarIcpParams& p) {
-    path += moved;
+  // Adds a keyframe taken at `pose` (after `path` of travel), drops the keyframes the local map
+  // no longer holds (but the newest), and rebuilds the map.
+  void addKeyframe(const Eigen::Vector3d& pose, const mrpt::maps::CSimplePointsMap& scan,
+                   const LidarIcpParams& p) {
     Keyframe kf{pose.head<2>(), pose.z(), path, std::vector<Eigen::Vector2f>(scan.size())};
     for (size_t i = 0; i < scan.size(); ++i) {
       float px, py, pz;
@@ -297,13 +296,13 @@ std::optional<PoseEstimate> LidarIcp::doProcess(const Event& event) {
   pose_ = composePose(keyframe_pose_, rel);
   const bool moved = rel.head<2>().norm() >= params_.kf_dist ||
                      std::abs(rel.z()) >= params_.kf_angle_deg * M_PI / 180.0;
+  if (moved || !impl_->map) impl_->path += rel.head<2>().norm();  // travel, keyframe to keyframe
   if (usable && (!impl_->map || moved)) {
-    impl_->addKeyframe(pose_, rel.head<2>().norm(), *current, params_);
+    impl_->addKeyframe(pose_, *current, params_);
     keyframe_pose_ = pose_;
     odometry_since_keyframe_ = Eigen::Vector3d::Zero();
     // Re-seed from the estimate: the odometry since the keyframe restarts at zero.
   } else if (!usable && moved) {
-    impl_->path += rel.head<2>().norm();  // the distance the odometry alone covered
     keyframe_pose_ = pose_;
     odometry_since_keyframe_ = Eigen::Vector3d::Zero();
   } else {
