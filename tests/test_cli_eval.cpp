@@ -152,7 +152,7 @@ TEST(Jobs, FewerThreadsWhenTheLargestRunsTogetherExceedTheMemoryLimit) {
 
 TEST(Sweep, PlannedJobsMergedGiveTheTableOfOneCompare) {
   const auto dir = uwbloc::test::scratchDir() / "sweep";
-  const std::string methods = "uwb-ekf,pf-ibas:n=150,odom";
+  const std::string methods = "uwb-ekf,pf-ibas:n=150,init_n=300,odom";  // a spec of two keys
   const auto one = cli("compare -d " + kDemo + " --methods " + methods +
                        " --repeat 2 --seed 3 --jobs 2 --no-plots -o " + (dir / "one").string());
   ASSERT_EQ(one.code, 0) << one.output;

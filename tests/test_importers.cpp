@@ -1,13 +1,15 @@
 // Importers and readers on constructed files: CARMEN's corrected-pose copies and bad stamps,
 // Plaza's odometry direction found from the data, timestamps that cannot be used, collapsed
-// timestamps, and dead reckoning that starts at the reference's first time.
+// timestamps, and dead reckoning and particle filters that start at the reference's first time.
 #include <gtest/gtest.h>
 #include <matio.h>
 
 #include <cmath>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 #include <tuple>
+#include <vector>
 
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
@@ -284,27 +286,58 @@ TEST(Plaza, TheMatLayoutImportsLikeTheTextLayout) {
       [&] { data::importPlaza(mat.string(), (dir / "d").string()); }, {"P.mat", "libmatio"});
 }
 
-TEST(Odometry, DeadReckoningStartsAtTheFirstReferenceTime) {
-  // Increments at or before the start pose's time brought the robot there: they are skipped.
+namespace {
+/// A context whose start pose, (1, 2) heading 0, is at t = 5 s.
+loc::EstimatorContext startingAtFiveSeconds(std::vector<uwb::Anchor> anchors) {
   loc::EstimatorContext ctx;
-  ctx.anchors = {{1, {0, 0, 0}}};
+  ctx.anchors = std::move(anchors);
   ctx.initial_pose = Eigen::Vector3d(1.0, 2.0, 0.0);
   ctx.initial_time = 5.0;
-  auto odom = loc::Registry::builtin().create("odom", ctx);
-  for (double t : {4.0, 5.0, 6.0}) {
+  return ctx;
+}
+
+/// 1 m straight ahead at each time; the last increment's estimate, if any.
+std::optional<loc::PoseEstimate> metreAheadAt(loc::Estimator& e, std::vector<double> times) {
+  std::optional<loc::PoseEstimate> out;
+  for (double t : times) {
     loc::OdometryIncrement o;
     o.t = t;
     o.delta << 1.0, 0.0, 0.0;
-    odom->process(o);
+    out = e.process(o);
   }
+  return out;
+}
+}  // namespace
+
+TEST(Odometry, DeadReckoningStartsAtTheFirstReferenceTime) {
+  // Increments at or before the start pose's time brought the robot there: they are skipped.
+  auto odom = loc::Registry::builtin().create("odom", startingAtFiveSeconds({{1, {0, 0, 0}}}));
+  metreAheadAt(*odom, {4.0, 5.0, 6.0});
   const auto poses = odom->finishAll();
   EXPECT_EQ(odom->statistics().rejected.at("odometry_before_start"), 2);
-  loc::OdometryIncrement o;
-  o.t = 7.0;
-  o.delta << 1.0, 0.0, 0.0;
-  const auto last = odom->process(o);
+  const auto last = metreAheadAt(*odom, {7.0});
   ASSERT_TRUE(last.has_value());
   EXPECT_NEAR(last->pose.x(), 3.0, 1e-12);  // 1 + the increments at 6 and 7
+}
+
+// The particle filters start from the start pose at its time as well: 3 m of odometry recorded
+// before it would put the cloud 3 m ahead of a robot that ranges from where it stands.
+TEST(Odometry, ParticleFiltersStartAtTheFirstReferenceTime) {
+  const auto ctx = startingAtFiveSeconds({{1, {0, 0, 0}}, {2, {10, 0, 0}}, {3, {0, 10, 0}}});
+  auto pf = loc::Registry::builtin().create("uwb-pf:calib=0,sigma=0.1", ctx);
+  metreAheadAt(*pf, {3.0, 4.0, 5.0});
+  for (int k = 0; k < 30; ++k)
+    for (const auto& a : ctx.anchors) {
+      uwb::Range r;
+      r.t = 5.1 + 0.1 * k;
+      r.anchor_id = a.id;
+      r.range = (a.position - Eigen::Vector3d(1.0, 2.0, 0.0)).norm();
+      pf->process(r);
+    }
+  const auto poses = pf->finishAll();
+  ASSERT_FALSE(poses.empty());
+  EXPECT_EQ(pf->statistics().rejected.at("odometry_before_start"), 3);
+  EXPECT_LT((poses.back().pose.head<2>() - Eigen::Vector2d(1.0, 2.0)).norm(), 0.1);
 }
 
 TEST(Hanyang, RowsWithUnusableStampsOrPosesAreSkippedAndCounted) {

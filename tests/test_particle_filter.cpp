@@ -277,6 +277,47 @@ TEST(RangeMixture, DensityIsNormalisedAndGaussianWithoutNlos) {
   EXPECT_NEAR(m.logDensity(0.2), -0.5 * 4.0 - std::log(0.1 * std::sqrt(2.0 * M_PI)), 1e-6);
 }
 
+// P(NLOS | e) is the NLOS part's share of the density at e, with the link's own prior for w:
+// the two parts' densities are read off the mixture's density at two values of w (it is linear
+// in w), and the posterior is formed from them by Bayes' rule.
+TEST(RangeMixture, NlosPosteriorIsBayesRuleWithTheLinksPrior) {
+  RangeMixture m;
+  m.sigma = 0.1;
+  m.nlos_mean = 0.5;
+  for (double e : {-0.1, 0.0, 0.15, 0.4, 1.0})
+    for (double prior : {0.2, 0.5, 0.8}) {
+      const double p0 = std::exp(m.withNlosFraction(0.25).logDensity(e, 0.12));
+      const double p1 = std::exp(m.withNlosFraction(0.75).logDensity(e, 0.12));
+      // p(w) = (1 - w) N + w E at w = 0.25 and 0.75.
+      const double nlos = 1.5 * p1 - 0.5 * p0, los = 1.5 * p0 - 0.5 * p1;
+      const double expected = prior * nlos / (prior * nlos + (1.0 - prior) * los);
+      EXPECT_NEAR(m.nlosPosterior(e, 0.12, prior), expected, 1e-9) << e << " " << prior;
+    }
+  EXPECT_GT(m.nlosPosterior(1.5, 0.1, 0.5), 0.999);  // far longer than the LOS noise explains
+  EXPECT_LT(m.nlosPosterior(-0.3, 0.1, 0.5), 0.1);   // shorter than the distance: LOS
+  EXPECT_NEAR(m.withNlosFraction(1.0).nlos_fraction, 0.99, 1e-12);  // the LOS part keeps 1 %
+  EXPECT_NEAR(m.withNlosFraction(0.0).nlos_fraction, 0.01, 1e-12);
+}
+
+// A link's chance of NLOS: the mixture's w until it is seen, then its last posterior relaxed
+// toward w with the memory's time constant; each anchor-tag link on its own.
+TEST(RangeMixture, TheLinksNlosStateRelaxesTowardTheMixturesShare) {
+  NlosStateTrack track(5.0);
+  EXPECT_TRUE(track.enabled());
+  EXPECT_FALSE(NlosStateTrack(0.0).enabled());
+  const double w = 0.8;
+  EXPECT_EQ(track.prior(1, 0, 10.0, w), w);
+  track.update(1, 0, 10.0, 0.1);
+  EXPECT_NEAR(track.prior(1, 0, 10.0, w), 0.1, 1e-12);
+  EXPECT_NEAR(track.prior(1, 0, 15.0, w), w + (0.1 - w) * std::exp(-1.0), 1e-12);
+  EXPECT_NEAR(track.prior(1, 0, 1e6, w), w, 1e-12);
+  EXPECT_NEAR(track.prior(1, 0, 9.0, w), 0.1, 1e-12);  // a range stamped earlier: no decay
+  EXPECT_EQ(track.prior(1, 1, 10.0, w), w);            // another tag
+  EXPECT_EQ(track.prior(2, 0, 10.0, w), w);            // another anchor
+  track.clear();
+  EXPECT_EQ(track.prior(1, 0, 10.0, w), w);
+}
+
 namespace {
 /// Residuals of three anchors: LOS N(0, 0.1), a share `w` of them long by Exp(mean 0.5); the
 /// third anchor's shifted by `bias3`.

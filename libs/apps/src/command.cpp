@@ -16,6 +16,18 @@ std::vector<std::string> splitList(const std::string& text) {
   return out;
 }
 
+std::vector<std::string> splitMethodSpecs(const std::string& list) {
+  std::vector<std::string> out;
+  for (const auto& item : splitList(list)) {
+    const auto eq = item.find('=');
+    if (eq != std::string::npos && eq < item.find(':') && !out.empty())
+      out.back() += "," + item;
+    else
+      out.push_back(item);
+  }
+  return out;
+}
+
 std::string safeName(const std::string& name, const std::string& fallback) {
   std::string out;
   for (char c : name)

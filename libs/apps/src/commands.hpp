@@ -20,6 +20,10 @@ namespace uwbloc::apps {
 /// "a,b,,c" -> {"a", "b", "c"}.
 std::vector<std::string> splitList(const std::string& text);
 
+/// Method specs, comma-separated: "a:k=v,k=v,b" -> {"a:k=v,k=v", "b"}. An item with '=' before
+/// any ':' (k=v, or k=model:path) continues the previous spec.
+std::vector<std::string> splitMethodSpecs(const std::string& list);
+
 /// `name` reduced to letters, digits, '-' and '_' (anything else becomes '_'), `fallback` when
 /// empty: a dataset's name made a directory name that cannot point elsewhere.
 std::string safeName(const std::string& name, const std::string& fallback = "dataset");

@@ -245,7 +245,7 @@ int BenchmarkCommand::run() {
   o.project_datasets = data::projectDatasetsDir();
   o.work_dir = out_;
   o.seeds = seeds_;
-  o.methods = splitList(methods_);
+  o.methods = splitMethodSpecs(methods_);
   o.datasets = splitList(datasets_);
   eval::checkBenchmarkMethods(o.methods);  // before the imports, which take minutes
   const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
@@ -291,7 +291,7 @@ int SensitivityCommand::run() {
   o.work_dir = out_;
   o.seeds = seeds_;
   o.duration = duration_;
-  if (!methods_.empty()) o.methods = splitList(methods_);
+  if (!methods_.empty()) o.methods = splitMethodSpecs(methods_);
   if (!conditions_.empty()) o.conditions = splitList(conditions_);
   const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
   const auto cells = eval::runSensitivity(o, log);

@@ -251,7 +251,7 @@ int SweepCommand::run() {
     std::string self = "uwbloc";
     std::error_code ec;
     if (const auto p = fs::read_symlink("/proc/self/exe", ec); !ec) self = p.string();
-    const auto methods = splitList(methods_);
+    const auto methods = splitMethodSpecs(methods_);
     const auto datasets = splitList(datasets_);
     if (methods.empty() || datasets.empty())
       throw data::InputError("sweep plan: --datasets and --methods must name at least one each");

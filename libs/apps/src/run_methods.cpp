@@ -29,20 +29,9 @@ namespace uwbloc::apps {
 
 namespace {
 
-// "a:k=v,k=v,b" -> {"a:k=v,k=v", "b"}: an item with '=' before any ':' (k=v, or k=model:path)
-// continues the previous spec.
+// The method list, or every registered method for 'all'.
 std::vector<std::string> splitMethods(const std::string& list) {
-  std::vector<std::string> out;
-  std::string item;
-  std::istringstream in(list);
-  while (std::getline(in, item, ',')) {
-    if (item.empty()) continue;
-    const auto eq = item.find('=');
-    if (eq != std::string::npos && eq < item.find(':') && !out.empty())
-      out.back() += "," + item;
-    else
-      out.push_back(item);
-  }
+  auto out = splitMethodSpecs(list);
   if (out.size() == 1 && out[0] == "all") return loc::Registry::builtin().names();
   return out;
 }

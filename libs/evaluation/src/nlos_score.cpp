@@ -34,6 +34,11 @@ NlosScores scoreNlos(const data::Dataset& ds, const std::vector<loc::RangeDecisi
         score->good_flagged += flag;
       }
     }
+    if (std::isfinite(d.p_nlos)) {
+      const bool flag = d.p_nlos > 0.5;
+      (bad ? out.state.bad : out.state.good) += 1;
+      (bad ? out.state.bad_flagged : out.state.good_flagged) += flag;
+    }
   }
   return out;
 }

@@ -161,11 +161,14 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
     for (const auto& [err, frac] : m.metrics.cdf) e["cdf"].push_back({number(err), frac});
     if (!m.range_decisions.empty() && !dataset.ground_truth.empty()) {
       const auto sc = scoreNlos(dataset, m.range_decisions);
-      for (auto [key, d] : {std::pair{"pose", &sc.pose}, std::pair{"raycast", &sc.raycast}})
+      for (auto [key, d] : {std::pair{"pose", &sc.pose}, std::pair{"raycast", &sc.raycast},
+                            std::pair{"state", &sc.state}}) {
+        if (d == &sc.state && sc.state.bad + sc.state.good == 0) continue;
         e["nlos_detection"][key] = {{"bad", d->bad},
                                     {"good", d->good},
                                     {"recall", number(d->recall())},
                                     {"false_alarm", number(d->false_alarm())}};
+      }
     }
     e["parameters"] = nlohmann::json::object();
     for (const auto& p : m.parameters) e["parameters"][p.key] = p.value;
@@ -282,6 +285,14 @@ void boundsAndNlosLines(std::ostringstream& out, const Json& j) {
                   pose["good"].get<long>(), num(pose, "recall"), num(pose, "false_alarm"),
                   num(ray, "recall"), num(ray, "false_alarm"));
     out << buf;
+    if (m["nlos_detection"].contains("state")) {
+      const Json& state = m["nlos_detection"]["state"];
+      std::snprintf(buf, sizeof buf,
+                    "    each link's tracked NLOS state (P(NLOS) > 0.5): recall %.3f, false alarm "
+                    "%.3f\n",
+                    num(state, "recall"), num(state, "false_alarm"));
+      out << buf;
+    }
   }
 }
 

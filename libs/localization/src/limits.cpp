@@ -19,6 +19,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"respread_xy", 0, 1e3, false, "[m]"},
       {"respread_theta", 0, 180, false, "[deg]"},
       {"range_share", 0, 1, true, "a share of each range's log-likelihood"},
+      {"nlos_memory", 0, 1e6, false, "[s]"},
       {"calib", 0, 1e6, false, "[s] of recording learnt from"},
       {"start_sigma", 0, 1e3, true, "[m]"},
       {"start_sigma_yaw", 0, 180, true, "[deg]"},

@@ -18,21 +18,38 @@ constexpr double kMinNlosFraction = 0.05;
 /// The LOS part keeps at least 1 %: the NLOS test measures a range against it.
 constexpr double kMaxNlosFraction = 0.99;
 
-/// log of (1 - w) N(e; 0, s) + w EMG(e; s, m), for doubles and Jets. The EMG's log is taken as
-/// log(1/m) + s^2/(2 m^2) - e/m + log Phi(e/s - s/m); far in Phi's lower tail (a range much
-/// shorter than the distance) erfc underflows, and the LOS part carries the density there.
+/// The two parts' log-densities at e, unweighted: log N(e; 0, s) and log EMG(e; s, m), for
+/// doubles and Jets. The EMG's log is taken as log(1/m) + s^2/(2 m^2) - e/m + log Phi(e/s - s/m);
+/// far in Phi's lower tail (a range much shorter than the distance) erfc underflows, and the NLOS
+/// part has no density there (has_nlos false).
+template <class T>
+struct PartLogDensities {
+  T los, nlos;
+  bool has_nlos = false;
+};
+template <class T>
+PartLogDensities<T> partLogDensities(const T& e, const T& s, const T& m) {
+  using std::erfc;
+  using std::log;
+  PartLogDensities<T> out;
+  const T z = e / s;
+  out.los = -T(0.5) * z * z - log(s) - T(0.5 * std::log(2.0 * M_PI));
+  const T phi = T(0.5) * erfc(-(z - s / m) / T(M_SQRT2));
+  out.has_nlos = phi > T(1e-300);
+  out.nlos = out.has_nlos ? -log(m) + s * s / (T(2) * m * m) - e / m + log(phi) : out.los;
+  return out;
+}
+
+/// log of (1 - w) N(e; 0, s) + w EMG(e; s, m), for doubles and Jets; the LOS part alone where
+/// the NLOS part has no density.
 template <class T>
 T mixtureLogDensity(const T& e, const T& w, const T& s, const T& m) {
-  using std::erfc;
   using std::exp;
   using std::log;
-  using std::sqrt;
-  const T z = e / s;
-  const T log_los = log(T(1) - w) - T(0.5) * z * z - log(s) - T(0.5 * std::log(2.0 * M_PI));
-  const T arg = -(z - s / m) / T(M_SQRT2);
-  const T phi = T(0.5) * erfc(arg);
-  if (!(phi > T(1e-300))) return log_los;
-  const T log_nlos = log(w) - log(m) + s * s / (T(2) * m * m) - e / m + log(phi);
+  const auto parts = partLogDensities(e, s, m);
+  const T log_los = log(T(1) - w) + parts.los;
+  if (!parts.has_nlos) return log_los;
+  const T log_nlos = log(w) + parts.nlos;
   const T hi = log_los > log_nlos ? log_los : log_nlos;
   const T lo = log_los > log_nlos ? log_nlos : log_los;
   return hi + log(T(1) + exp(lo - hi));
@@ -104,6 +121,32 @@ std::optional<Solved> solveFrom(const std::vector<double>& sorted, double q, dou
 
 double RangeMixture::logDensity(double e, double sigma_eff) const {
   return mixtureLogDensity(e, nlos_fraction, std::max(sigma_eff, 1e-6), nlos_mean);
+}
+
+double RangeMixture::nlosPosterior(double e, double sigma_eff, double prior) const {
+  const auto parts = partLogDensities(e, std::max(sigma_eff, 1e-6), nlos_mean);
+  if (!parts.has_nlos) return 0.0;
+  prior = std::clamp(prior, 1.0 - kMaxNlosFraction, kMaxNlosFraction);
+  // P = w N_nlos / (w N_nlos + (1 - w) N_los), as a logistic of the log-odds.
+  const double log_odds = std::log(prior) - std::log1p(-prior) + parts.nlos - parts.los;
+  return 1.0 / (1.0 + std::exp(-log_odds));
+}
+
+RangeMixture RangeMixture::withNlosFraction(double w) const {
+  RangeMixture out = *this;
+  out.nlos_fraction = std::clamp(w, 1.0 - kMaxNlosFraction, kMaxNlosFraction);
+  return out;
+}
+
+double NlosStateTrack::prior(int anchor, int tag, double t, double w) const {
+  const auto it = links_.find({anchor, tag});
+  if (it == links_.end()) return w;
+  const double dt = std::max(0.0, t - it->second.t);
+  return w + (it->second.posterior - w) * std::exp(-dt / memory_);
+}
+
+void NlosStateTrack::update(int anchor, int tag, double t, double posterior) {
+  links_[{anchor, tag}] = {posterior, t};
 }
 
 bool RangeMixture::outside(double e, double sigma_eff, double k) const {

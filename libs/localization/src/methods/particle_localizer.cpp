@@ -348,6 +348,11 @@ std::optional<PoseEstimate> ParticleLocalizer::step(const Event& event) {
       countRejection("non_finite_odometry");
       return out;
     }
+    // From the start pose at its time: the motion recorded before it is already in that pose.
+    if (core_.init == InitMode::kTracking && odo->t <= context_.startTime()) {
+      countRejection("odometry_before_start");
+      return out;
+    }
     if (epoch_open_) out = finishEpoch();  // motion at the epoch's own time: close it first
     odometry(*odo);
     return out;

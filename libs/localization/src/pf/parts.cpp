@@ -124,6 +124,7 @@ UwbRangeMeasurement::UwbRangeMeasurement(const UwbPartParams& params,
       nlos_reason_(std::string("nlos_") + enumName(params.nlos)),
       pose_gate_(params.nlos_k * params.nlos_k),
       noise_(params.front.sigmaValue()),
+      nlos_state_(params.nlos_memory),
       learn_at_lidar_(with_lidar && params.calib_lidar > 0.0 && params.mixture &&
                       params.front.sigma.isAuto() && params.bias != BiasMode::kOn) {
   if (params_.nlos == NlosTest::kRaycast && !map_)
@@ -260,6 +261,7 @@ bool UwbRangeMeasurement::suspended() const {
 
 void UwbRangeMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stats) {
   used_.clear();
+  used_nlos_prior_.clear();
   if (epoch_.empty()) return;
   // The NLOS test uses the estimate after the motion and the epoch's other updates (LiDAR).
   pf.normalize();
@@ -307,6 +309,14 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
     if (recent_failed_.size() > static_cast<size_t>(params_.lost_ranges))
       recent_failed_.pop_front();
   }
+  // Under the mixture, the chance that this range is NLOS before it is seen (its link's tracked
+  // state, or w), and after, at the estimate it was tested against.
+  const int tag_id = r.measurement.tag_id;
+  double prior = mixture_ ? mixture_->nlos_fraction : 0.0;
+  if (mixture_ && nlos_state_.enabled()) {
+    prior = nlos_state_.prior(dec.anchor_id, tag_id, dec.t, prior);
+    dec.p_nlos = mixture_->nlosPosterior(d - d_hat, std::sqrt(s), prior);
+  }
   const bool flagged = failed && !suspended();
   double sig = sigma;
   if (flagged) {
@@ -321,17 +331,20 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   stats.range_decisions.push_back(dec);
   // The swarm's fitness weighs the clean ranges at the learnt std: none downweighted, doubted by
   // an NLOS model or of a wider tag.
-  if (sig == sigma && r.variance_scale == 1.0 && tagScale(r.measurement.tag_id) == 1.0) {
+  if (sig == sigma && r.variance_scale == 1.0 && tagScale(tag_id) == 1.0) {
     used_.push_back(r);
     used_.back().measurement.range = d;
+    used_nlos_prior_.push_back(prior);
   }
   const double inv2 = 1.0 / (2.0 * sig * sig);
   const Eigen::Vector3d anchor = r.anchor;
   if (mixture_) {
     const double share = mixture_->weight;
+    const RangeMixture link = mixture_->withNlosFraction(prior);
     pf.weight([&](double x, double y, double th) {
-      return share * mixture_->logDensity(d - uwb::predictRange({x, y, th}, tag, anchor), sig);
+      return share * link.logDensity(d - uwb::predictRange({x, y, th}, tag, anchor), sig);
     });
+    if (nlos_state_.enabled()) nlos_state_.update(dec.anchor_id, tag_id, dec.t, dec.p_nlos);
     return;
   }
   pf.weight([&](double x, double y, double th) {
@@ -342,10 +355,12 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
 
 double UwbRangeMeasurement::addLogLikelihood(double l, double x, double y, double theta) const {
   const double inv2 = 1.0 / (2.0 * noise_.sigma() * noise_.sigma());
-  for (const auto& r : used_) {
+  for (size_t i = 0; i < used_.size(); ++i) {
+    const auto& r = used_[i];
     const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
     if (mixture_)
-      l += mixture_->weight * mixture_->logDensity(r.measurement.range - h);
+      l += mixture_->weight *
+           mixture_->withNlosFraction(used_nlos_prior_[i]).logDensity(r.measurement.range - h);
     else
       l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs
   }

@@ -19,6 +19,7 @@ struct DetectorScore {
 struct NlosScores {
   DetectorScore pose;     ///< the pose-based test
   DetectorScore raycast;  ///< the map ray-cast
+  DetectorScore state;    ///< the links' tracked NLOS state, P(NLOS) > 0.5 (where it is tracked)
 };
 
 /// Scores the recorded decisions. `anchor` restricts the bad class to one anchor (the recall of

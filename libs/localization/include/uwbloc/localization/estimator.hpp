@@ -41,6 +41,9 @@ struct RangeDecision {
   bool flag_pose = false;     ///< the pose-based test flagged it
   bool flag_raycast = false;  ///< the map ray-cast flagged it
   bool used = false;          ///< it weighted the particles
+  /// Under the range mixture with each link's NLOS state tracked: P(NLOS) of this range at the
+  /// estimate it was tested against (RangeMixture::nlosPosterior); NaN otherwise.
+  double p_nlos = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// A range model learnt from the data for one anchor (per link).

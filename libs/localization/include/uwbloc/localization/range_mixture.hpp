@@ -32,9 +32,43 @@ struct RangeMixture {
   /// or an NLOS model's doubt): both parts take it.
   double logDensity(double e, double sigma_eff) const;
   double logDensity(double e) const { return logDensity(e, sigma); }
+  /// P(NLOS | e): the NLOS part's share of the density at e, with `prior` in place of w (held
+  /// within [0.01, 0.99]) and both parts at `sigma_eff`. 0 where the NLOS part has no density (e
+  /// far below zero).
+  double nlosPosterior(double e, double sigma_eff, double prior) const;
+  /// This mixture with w set to `w` (held within [0.01, 0.99]: the LOS part keeps 1 %).
+  RangeMixture withNlosFraction(double w) const;
   /// Whether neither part explains e: its density (at `sigma_eff`) falls below the LOS part's
   /// at k sigma_eff (a range too short, or longer than the NLOS excess explains).
   bool outside(double e, double sigma_eff, double k) const;
+};
+
+/// Each link's (anchor and tag) NLOS state, tracked as a two-state Markov chain over its ranges.
+/// An anchor stays out of sight while the robot crosses a room, so the state persists from one
+/// range to the next; the mixture's w is only its share over the whole run. The chance that a
+/// link's next range is NLOS is the posterior of its last (RangeMixture::nlosPosterior) relaxed
+/// toward w with time constant `memory`: p(t) = w + (p_last - w) exp(-(t - t_last) / memory).
+/// A link not seen yet starts at w. The ranges of one link are then independent given its
+/// state. With one w for every range, a link in sight all along is read as 80 % NLOS and pulled
+/// toward its anchor: CARMEN intel with six simulated anchors, four of them in sight or out of it
+/// all along, fused-pf 0.124 m against 0.084 m with the state tracked (lidar-mcl 0.105 m).
+class NlosStateTrack {
+ public:
+  explicit NlosStateTrack(double memory) : memory_(memory) {}
+  bool enabled() const { return memory_ > 0.0; }
+  /// The chance that the link's range at time t is NLOS, before the range is seen.
+  double prior(int anchor, int tag, double t, double w) const;
+  /// The link's posterior after its range at time t.
+  void update(int anchor, int tag, double t, double posterior);
+  void clear() { links_.clear(); }
+
+ private:
+  struct Link {
+    double posterior = 0.0;
+    double t = 0.0;
+  };
+  double memory_;
+  std::map<std::pair<int, int>, Link> links_;
 };
 
 /// The mixture's fit to range residuals after a solve, each with its anchor id: maximum

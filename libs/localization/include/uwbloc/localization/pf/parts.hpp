@@ -178,6 +178,9 @@ struct UwbPartParams {
   /// learnt with the mixture (RangeMixture::weight, from the residuals at the LiDAR's pose or of
   /// the learning start's smoothing).
   AutoDouble range_share;
+  /// Under the mixture: each link's NLOS state is tracked (NlosStateTrack), its memory this many
+  /// seconds; 0: every range takes the mixture's NLOS fraction.
+  double nlos_memory = 5.0;
 
   template <class V>
   void visit(V&& v) {
@@ -214,6 +217,10 @@ struct UwbPartParams {
       "integrated autocorrelation time (in ranges) of the residuals the mixture was learnt from "
       "(at the LiDAR's pose, or of the smoothing): ranges whose errors persist are not "
       "independent");
+    v("nlos_memory", nlos_memory,
+      "under the mixture, each anchor-tag link's NLOS state is tracked: the chance that its "
+      "range is NLOS is the posterior of its last range relaxed toward the mixture's NLOS "
+      "fraction with this time constant [s]; 0: every range takes the fraction");
   }
 };
 
@@ -403,6 +410,7 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   void reset() override {
     nlos_streak_ = 0;
     recent_failed_.clear();
+    nlos_state_.clear();
   }
   bool lost() const override;
   std::optional<Calibration> calibration() const override;
@@ -434,6 +442,8 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   int epoch_flagged_ = 0;                ///< ranges of the open epoch that failed the NLOS test
   int nlos_streak_ = 0;                  ///< epochs in a row in which most ranges failed it
   std::optional<RangeMixture> mixture_;  ///< the learnt range likelihood, when in force
+  NlosStateTrack nlos_state_;            ///< under the mixture: each link's NLOS state
+  std::vector<double> used_nlos_prior_;  ///< each used_ range's chance of NLOS, as weighed
   bool learn_at_lidar_ = false;          ///< the mixture is learnt by lidar-mcl's range probe
   std::deque<bool> recent_failed_;       ///< the NLOS test's verdicts on the last ranges
   /// Several tags: a tag whose ranges the learning found clearly wider than all the tags'
