@@ -140,7 +140,7 @@ RangeMixture RangeMixture::withNlosFraction(double w) const {
 
 double NlosStateTrack::prior(int anchor, int tag, double t, double w) const {
   const auto it = links_.find({anchor, tag});
-  if (it == links_.end()) return w;
+  if (!enabled() || it == links_.end()) return w;
   const double dt = std::max(0.0, t - it->second.t);
   return w + (it->second.posterior - w) * std::exp(-dt / memory_);
 }

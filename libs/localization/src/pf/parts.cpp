@@ -261,7 +261,6 @@ bool UwbRangeMeasurement::suspended() const {
 
 void UwbRangeMeasurement::weight(ParticleFilter& pf, EstimatorStatistics& stats) {
   used_.clear();
-  used_nlos_prior_.clear();
   if (epoch_.empty()) return;
   // The NLOS test uses the estimate after the motion and the epoch's other updates (LiDAR).
   pf.normalize();
@@ -329,18 +328,18 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
   }
   dec.used = true;
   stats.range_decisions.push_back(dec);
+  // Under the mixture, this range's likelihood: the mixture at its link's chance of NLOS.
+  const RangeMixture link = mixture_ ? mixture_->withNlosFraction(prior) : RangeMixture{};
   // The swarm's fitness weighs the clean ranges at the learnt std: none downweighted, doubted by
   // an NLOS model or of a wider tag.
   if (sig == sigma && r.variance_scale == 1.0 && tagScale(tag_id) == 1.0) {
-    used_.push_back(r);
-    used_.back().measurement.range = d;
-    used_nlos_prior_.push_back(prior);
+    used_.push_back({r, link});
+    used_.back().range.measurement.range = d;
   }
   const double inv2 = 1.0 / (2.0 * sig * sig);
   const Eigen::Vector3d anchor = r.anchor;
   if (mixture_) {
     const double share = mixture_->weight;
-    const RangeMixture link = mixture_->withNlosFraction(prior);
     pf.weight([&](double x, double y, double th) {
       return share * link.logDensity(d - uwb::predictRange({x, y, th}, tag, anchor), sig);
     });
@@ -355,12 +354,10 @@ void UwbRangeMeasurement::weightRange(ParticleFilter& pf, const AcceptedRange& r
 
 double UwbRangeMeasurement::addLogLikelihood(double l, double x, double y, double theta) const {
   const double inv2 = 1.0 / (2.0 * noise_.sigma() * noise_.sigma());
-  for (size_t i = 0; i < used_.size(); ++i) {
-    const auto& r = used_[i];
+  for (const auto& [r, link] : used_) {
     const double h = uwb::predictRange({x, y, theta}, r.measurement.tag_on_robot, r.anchor);
     if (mixture_)
-      l += mixture_->weight *
-           mixture_->withNlosFraction(used_nlos_prior_[i]).logDensity(r.measurement.range - h);
+      l += mixture_->weight * link.logDensity(r.measurement.range - h);
     else
       l -= (r.measurement.range - h) * (r.measurement.range - h) * inv2;  // eq. (26), in logs
   }

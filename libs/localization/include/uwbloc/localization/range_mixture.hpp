@@ -56,7 +56,8 @@ class NlosStateTrack {
  public:
   explicit NlosStateTrack(double memory) : memory_(memory) {}
   bool enabled() const { return memory_ > 0.0; }
-  /// The chance that the link's range at time t is NLOS, before the range is seen.
+  /// The chance that the link's range at time t is NLOS, before the range is seen (w when the
+  /// track is off).
   double prior(int anchor, int tag, double t, double w) const;
   /// The link's posterior after its range at time t.
   void update(int anchor, int tag, double t, double posterior);

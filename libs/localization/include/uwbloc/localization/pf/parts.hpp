@@ -437,13 +437,18 @@ class UwbRangeMeasurement final : public EpochMeasurement {
   std::string nlos_reason_;       ///< "nlos_<test>", built once
   uwb::ChiSquareGate pose_gate_;  ///< the pose test at k sigma (threshold k^2)
   std::vector<AcceptedRange> epoch_;
-  std::vector<AcceptedRange> used_;  ///< the clean ones (bias removed), for the swarm's fitness
+  /// A range the swarm's fitness weighs, with its likelihood under the mixture (the mixture at
+  /// its link's chance of NLOS when it was weighed; unused without the mixture).
+  struct UsedRange {
+    AcceptedRange range;
+    RangeMixture link;
+  };
+  std::vector<UsedRange> used_;  ///< the clean ones (bias removed), for the swarm's fitness
   RangeNoiseModel noise_;
   int epoch_flagged_ = 0;                ///< ranges of the open epoch that failed the NLOS test
   int nlos_streak_ = 0;                  ///< epochs in a row in which most ranges failed it
   std::optional<RangeMixture> mixture_;  ///< the learnt range likelihood, when in force
   NlosStateTrack nlos_state_;            ///< under the mixture: each link's NLOS state
-  std::vector<double> used_nlos_prior_;  ///< each used_ range's chance of NLOS, as weighed
   bool learn_at_lidar_ = false;          ///< the mixture is learnt by lidar-mcl's range probe
   std::deque<bool> recent_failed_;       ///< the NLOS test's verdicts on the last ranges
   /// Several tags: a tag whose ranges the learning found clearly wider than all the tags'
