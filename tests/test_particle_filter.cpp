@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <random>
 #include <utility>
@@ -253,6 +255,92 @@ TEST(ParticleFilter, WideStartShrinksOnceConvergedAndGrowsBackOnReset) {
   EXPECT_LT(pf.estimate().mean.head<2>().norm(), p.converged_xy);
   pf.initUniformBox({0, 0, 0}, {2.0, 2.0, M_PI});
   EXPECT_EQ(pf.particles().size(), 1000u);
+}
+
+// Fox's bound (IJRR 2003, eq. 12): (k - 1) / (2 eps) {1 - 2/(9(k-1)) + sqrt(2/(9(k-1))) z}^3, the
+// Wilson-Hilferty form of the chi-square quantile chi2_{k-1, 1-delta} / (2 eps).
+TEST(ParticleFilter, KldSampleCountIsFoxsBound) {
+  const double z = 2.3263478740408408;  // delta = 0.01
+  EXPECT_EQ(kldSampleCount(1.0, 0.05, z), 1.0);
+  EXPECT_EQ(kldSampleCount(0.3, 0.05, z), 1.0);
+  // Two cells: 10 (7/9 + sqrt(2/9) z)^3.
+  EXPECT_NEAR(kldSampleCount(2.0, 0.05, z),
+              10.0 * std::pow(7.0 / 9.0 + std::sqrt(2.0 / 9.0) * z, 3), 1e-9);
+  EXPECT_NEAR(kldSampleCount(2.0, 0.05, z), 65.858, 1e-3);
+  // Against tabulated chi-square 0.99 quantiles: 23.209 (10 degrees), 76.154 (50).
+  EXPECT_NEAR(kldSampleCount(11.0, 0.05, z) / (23.209 / 0.1), 1.0, 2e-3);
+  EXPECT_NEAR(kldSampleCount(51.0, 0.05, z) / (76.154 / 0.1), 1.0, 5e-4);
+  // Half the distance bound, twice the particles.
+  EXPECT_NEAR(kldSampleCount(11.0, 0.025, z), 2.0 * kldSampleCount(11.0, 0.05, z), 1e-9);
+}
+
+// KLD-sampling: a resampling draws the fewest particles, from n up to n_max, that meet Fox's bound
+// over the cells the draw is expected to occupy. A cloud inside one cell keeps n; a wide one draws
+// the smallest m with bound(k(m)) <= m, k(m) = sum over cells of 1 - (1 - W_cell)^m; n_max caps it;
+// without n_max the count never moves.
+TEST(ParticleFilter, KldSamplingDrawsAsManyParticlesAsThePosteriorsSpreadNeeds) {
+  ParticleFilterParams p;
+  p.particles = 40;
+  p.max_particles = 2000;
+  p.ess_threshold = 1.5;  // resample at every call
+  const auto cellsOf = [&](const ParticleFilter& pf) {
+    std::map<std::array<long, 3>, double> cells;
+    const auto& s = pf.particles();
+    for (size_t i = 0; i < s.size(); ++i)
+      cells[{static_cast<long>(std::floor(s.x[i] / p.kld_bin_xy)),
+             static_cast<long>(std::floor(s.y[i] / p.kld_bin_xy)),
+             static_cast<long>(std::floor(s.theta[i] / p.kld_bin_theta))}] += pf.weights()[i];
+    return cells;
+  };
+  const auto bound = [&](const std::map<std::array<long, 3>, double>& cells, double m) {
+    double k = 0.0;
+    for (const auto& [cell, mass] : cells) k += 1.0 - std::pow(1.0 - mass, m);
+    return std::ceil(kldSampleCount(k, p.kld_epsilon, p.kld_z));
+  };
+
+  ParticleFilter pf(p, makeResampler(ResamplerKind::kSystematic), 11);
+  pf.initGaussian({0.25, 0.25, 0.08}, {0.02, 0.02, 0.01});  // one cell
+  pf.normalize();
+  ASSERT_EQ(cellsOf(pf).size(), 1u);
+  ASSERT_TRUE(pf.normalizeAndResample());
+  EXPECT_EQ(pf.particles().size(), 40u);
+
+  // 40 particles, each in a cell of its own, weighted unevenly: few draws would miss the light
+  // cells, so the count is less than with every cell counted.
+  pf.initUniformBox({0, 0, 0}, {2.5, 2.5, M_PI});
+  pf.weight([](double x, double y, double) { return -(x * x + y * y) / (2 * 0.8 * 0.8); });
+  pf.normalize();
+  const auto wide = cellsOf(pf);
+  ASSERT_GT(wide.size(), 35u);
+  ASSERT_TRUE(pf.normalizeAndResample());
+  const auto m = static_cast<double>(pf.particles().size());
+  EXPECT_LE(bound(wide, m), m);
+  EXPECT_GT(bound(wide, m - 1.0), m - 1.0) << "not the fewest that meet the bound";
+  EXPECT_GT(m, 100.0);
+  EXPECT_LT(m, bound(wide, 1e9)) << "every cell counted, light or not";
+  EXPECT_EQ(pf.weights().size(), pf.particles().size());
+  EXPECT_EQ(pf.resamplesAboveLeast(), 1);
+  EXPECT_EQ(pf.mostDrawn(), pf.particles().size());
+
+  // Converged again: back to n.
+  for (int k = 0; k < 3; ++k) {
+    pf.weight([](double x, double y, double th) {
+      return -((x - 0.25) * (x - 0.25) + (y - 0.25) * (y - 0.25)) / (2 * 0.02 * 0.02) -
+             (th - 0.08) * (th - 0.08) / (2 * 0.01 * 0.01);
+    });
+    pf.normalizeAndResample();
+  }
+  EXPECT_EQ(pf.particles().size(), 40u);
+
+  // The cap, and no adaptation without it.
+  for (int most : {300, 0}) {
+    ParticleFilterParams q = p;
+    q.max_particles = most;
+    ParticleFilter capped(q, makeResampler(ResamplerKind::kSystematic), 11);
+    capped.initUniformBox({0, 0, 0}, {2.5, 2.5, M_PI});
+    ASSERT_TRUE(capped.normalizeAndResample());
+    EXPECT_EQ(capped.particles().size(), most ? 300u : 40u);
+  }
 }
 
 // ------------------------------------------------------------------ the range-error mixture

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 
 #include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
@@ -188,6 +189,36 @@ TEST(Carmen, ImportAndAugmentIntel) {
       ibas.metrics.rmse_2d, ibas_untracked.metrics.rmse_2d);
   EXPECT_LE(ibas.metrics.rmse_2d, 1.05 * lidar.metrics.rmse_2d);
   EXPECT_LT(ibas.metrics.rmse_2d, 0.8 * ibas_untracked.metrics.rmse_2d);
+}
+
+// Issue 12's rule on the benchmark's aces+uwb (6 anchors on the reference path, NLOS where the
+// tag-anchor segment crosses the map of the log's scans): over 5 seeds pf-ibas's worst seed is
+// at most 1.05 x the LiDAR alone's mean. The count from KLD-sampling is what holds it: 0.074 /
+// 0.078 m against lidar-mcl's 0.084 m; with the fixed 40 particles (n_max=0) 0.091 / 0.108 m,
+// 1.29 x, its error peaking at 0.9 m on seed 5 where the cloud spreads to 0.46 m.
+TEST(Carmen, AcesWithUwbPfIbasWorstSeedWithinTheLidarAlone) {
+  const auto log = test::sharedData("carmen_2d_laser/aces-corrected.log.gz");
+  UWBLOC_REQUIRE_SHARED_DATA(log);
+  eval::BenchmarkOptions o;
+  o.data_dir = data::resolveDataDir();
+  o.project_datasets = std::string(UWBLOC_SOURCE_DIR) + "/datasets";
+  o.work_dir = test::scratchDir().string();
+  o.seeds = 5;
+  o.methods = {"lidar-mcl", "pf-ibas", "pf-ibas:n_max=0"};
+  o.datasets = {"carmen/aces+uwb"};
+  const auto datasets = eval::prepareBenchmarkDatasets(o, [](const std::string&) {});
+  ASSERT_EQ(datasets.size(), 1u);
+  const auto cells = eval::runBenchmark(datasets, o, [](const std::string&) {});
+  std::map<std::string, eval::BenchmarkCell> by;
+  for (const auto& c : cells) by[c.method] = c;
+  ASSERT_EQ(by.size(), 3u);
+  for (const auto& [method, c] : by)
+    std::printf("[ CARMEN   ] aces + 6 simulated anchors, 5 seeds: %s %.3f / %.3f m\n",
+                method.c_str(), c.mean_rmse, c.worst_rmse);
+  const double lidar = by["lidar-mcl"].mean_rmse;
+  EXPECT_GT(by["pf-ibas"].coverage, 0.9);
+  EXPECT_LE(by["pf-ibas"].worst_rmse, 1.05 * lidar);
+  EXPECT_LT(by["pf-ibas"].worst_rmse, 0.85 * by["pf-ibas:n_max=0"].worst_rmse);
 }
 
 TEST(Benchmark, TableOfMeanAndWorstSeedOverDatasets) {

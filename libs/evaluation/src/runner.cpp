@@ -86,7 +86,7 @@ MemoryEstimate estimateRunMemory(const data::Dataset& dataset, const loc::Estima
   double particles = 0.0;
   bool graph = false;
   for (const auto& p : estimator.parameters()) {
-    if (p.key == "n" || p.key == "init_n" || p.key == "relocalise_n")
+    if (p.key == "n" || p.key == "n_max" || p.key == "init_n" || p.key == "relocalise_n")
       particles = std::max(particles, std::strtod(p.value.c_str(), nullptr));
     graph |= p.key == "noise_rounds";
   }

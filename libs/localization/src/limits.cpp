@@ -11,6 +11,10 @@ namespace uwbloc::loc {
 const std::vector<ParamLimit>& paramLimits() {
   static const std::vector<ParamLimit> limits = {
       {"n", 1, 1e6, false, "particles: memory and time grow with them"},
+      {"n_max", 0, 1e6, false, "particles at most (KLD-sampling)"},
+      {"kld_epsilon", 0, 1, true, "a Kullback-Leibler distance bound"},
+      {"kld_bin", 0, 1e3, true, "[m]"},
+      {"kld_bin_theta", 0, 360, true, "[deg]"},
       {"init_n", 0, 1e6, false, "particles at the start"},
       {"relocalise_n", 0, 1e6, false, "particles when relocalising"},
       {"lost_fit", 0, 1, false, "a fraction of the usual scan fit"},

@@ -58,12 +58,12 @@ void addLidarMethods(Registry& r) {
   r.add(pfMethod<Lidar, Uwb, Swarm>(
       "pf-ibas",
       "The core method: LiDAR + UWB, NLOS rejection, particles moved by the improved beetle "
-      "swarm instead of resampled (n=40)",
-      fused, {{"n", "40"}}));
+      "swarm instead of resampled (n=40, up to 400 by KLD-sampling when the posterior spreads)",
+      fused, {{"n", "40"}, {"n_max", "400"}}));
   r.add(pfMethod<Lidar, Uwb, Swarm>(
       "pf-ibas-stratified",
       "pf-ibas whose degeneracy step resamples by stratified instead of systematic resampling",
-      fused, {{"n", "40"}, {"resampler", "stratified"}}));
+      fused, {{"n", "40"}, {"n_max", "400"}, {"resampler", "stratified"}}));
   r.add(pfMethod<Uwb>("uwb-pf",
                       "UWB + odometry particle filter (the UWB single-sensor particle baseline), "
                       "NLOS test against the odometry-predicted pose",

@@ -25,6 +25,10 @@ ParticleFilterParams filterParams(const ParticleCoreParams& p) {
   f.ess_threshold = p.ess;
   f.motion = scaledMotion(p.motion, p.motion_scale.value.value_or(1.0));
   f.initial_particles = p.init_n;
+  f.max_particles = p.max_particles;
+  f.kld_epsilon = p.kld_epsilon;
+  f.kld_bin_xy = p.kld_bin_xy;
+  f.kld_bin_theta = p.kld_bin_theta_deg * M_PI / 180.0;
   return f;
 }
 
@@ -328,6 +332,10 @@ std::vector<PoseEstimate> ParticleLocalizer::doFinishAll() {
   std::vector<PoseEstimate> out = start_.finish(learnt_, step_);
   if (epoch_open_) out.push_back(*finishEpoch());
   for (auto& m : measurements_) m->finish(stats_);
+  if (pf_.resamplesAboveLeast() > 0) {
+    stats_.events["kld_resamplings_above_n"] = pf_.resamplesAboveLeast();
+    stats_.events["kld_most_particles"] = static_cast<long>(pf_.mostDrawn());
+  }
   return out;
 }
 

@@ -120,8 +120,25 @@ ParticleFilter::ParticleFilter(const ParticleFilterParams& params,
   prepareStart();
 }
 
+double kldSampleCount(double bins, double epsilon, double z) {
+  if (!(bins > 1.0)) return 1.0;
+  const double a = 2.0 / (9.0 * (bins - 1.0));
+  const double c = 1.0 - a + std::sqrt(a) * z;
+  return (bins - 1.0) / (2.0 * epsilon) * c * c * c;
+}
+
 void ParticleFilter::prepareStart() {
   const auto n = static_cast<size_t>(std::max({1, params_.particles, params_.initial_particles}));
+  wide_start_ = n > static_cast<size_t>(std::max(1, params_.particles));
+  // Every array is sized for the largest count it will hold, so that a resampling to a larger
+  // count allocates nothing.
+  const auto most = std::max(n, static_cast<size_t>(std::max(0, params_.max_particles)));
+  for (auto* v : {&set_.x, &set_.y, &set_.theta, &set_.log_w, &scratch_.x, &scratch_.y,
+                  &scratch_.theta, &scratch_.log_w, &w_})
+    v->reserve(most);
+  indices_.reserve(most);
+  cells_.reserve(most);
+  cell_mass_.reserve(most);
   set_.resize(n);
   scratch_.resize(n);
   w_.assign(n, 1.0 / n);
@@ -130,7 +147,7 @@ void ParticleFilter::prepareStart() {
 }
 
 bool ParticleFilter::readyToShrink() const {
-  if (set_.size() <= static_cast<size_t>(std::max(1, params_.particles))) return false;
+  if (!wide_start_) return false;
   const Eigen::Matrix3d c = estimate().covariance;
   return std::sqrt(std::max(c(2, 2), 0.0)) < params_.converged_theta &&
          std::sqrt(std::max(c(0, 0) + c(1, 1), 0.0)) < params_.converged_xy;
@@ -241,8 +258,13 @@ bool ParticleFilter::normalizeAndResample() {
   const bool shrink = readyToShrink();
   size_t n = set_.size();
   if (!shrink && last_ess_ >= params_.ess_threshold * static_cast<double>(n)) return false;
-  if (shrink) n = static_cast<size_t>(std::max(1, params_.particles));
-  indices_.resize(n);  // never grows past the start's size: no allocation
+  if (shrink) wide_start_ = false;
+  if (!wide_start_) {
+    n = drawCount();
+    if (n > static_cast<size_t>(std::max(1, params_.particles))) ++resamples_above_least_;
+    most_drawn_ = std::max(most_drawn_, n);
+  }
+  indices_.resize(n);  // never grows past the reserved size: no allocation
   if (!resampler_->selectIndices(w_, indices_, rng_)) return true;
   scratch_.x.resize(n);
   scratch_.y.resize(n);
@@ -261,6 +283,41 @@ bool ParticleFilter::normalizeAndResample() {
   log_sum_before_ = std::log(static_cast<double>(n));
   ++resamples_;
   return true;
+}
+
+size_t ParticleFilter::drawCount() {
+  const auto least = static_cast<size_t>(std::max(1, params_.particles));
+  if (params_.max_particles <= params_.particles) return least;
+  // The weighted set's histogram: the mass of each occupied cell.
+  cells_.clear();
+  for (size_t i = 0; i < set_.size(); ++i)
+    cells_.push_back({{static_cast<long>(std::floor(set_.x[i] / params_.kld_bin_xy)),
+                       static_cast<long>(std::floor(set_.y[i] / params_.kld_bin_xy)),
+                       static_cast<long>(std::floor(set_.theta[i] / params_.kld_bin_theta))},
+                      w_[i]});
+  std::sort(cells_.begin(), cells_.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  cell_mass_.clear();
+  for (size_t i = 0; i < cells_.size(); ++i) {
+    if (i == 0 || cells_[i].first != cells_[i - 1].first) cell_mass_.push_back(0.0);
+    cell_mass_.back() += cells_[i].second;
+  }
+  const auto occupied = [&](double m) {
+    double k = 0.0;
+    for (double mass : cell_mass_) k += 1.0 - std::pow(std::max(0.0, 1.0 - mass), m);
+    return k;
+  };
+  // The bound grows with the cells m draws occupy, and they with m: from the least count, up
+  // until the bound is met (each step raises m, so this ends).
+  const auto most = static_cast<size_t>(params_.max_particles);
+  size_t m = least;
+  while (m < most) {
+    const double need = std::ceil(
+        kldSampleCount(occupied(static_cast<double>(m)), params_.kld_epsilon, params_.kld_z));
+    if (!(need > static_cast<double>(m))) break;
+    m = std::min(most, static_cast<size_t>(need));
+  }
+  return m;
 }
 
 ParticleEstimate ParticleFilter::estimate() const {

@@ -84,7 +84,24 @@ struct ParticleFilterParams {
   int initial_particles = 0;
   double converged_theta = 10.0 * M_PI / 180.0;  ///< [rad]
   double converged_xy = 0.3;                     ///< [m]
+  /// KLD-sampling (Fox, "Adapting the sample size in particle filters through KLD-sampling",
+  /// IJRR 2003): when larger than `particles`, each resampling draws as many particles, between
+  /// `particles` and this, as bound the Kullback-Leibler distance between the drawn set and the
+  /// weighted one by `kld_epsilon` with probability 1 - delta (`kld_z` is its standard normal
+  /// quantile), over a histogram of `kld_bin_xy` x `kld_bin_xy` x `kld_bin_theta` cells.
+  int max_particles = 0;
+  double kld_epsilon = 0.05;
+  double kld_z = 2.3263478740408408;           ///< delta = 0.01
+  double kld_bin_xy = 0.5;                     ///< [m]
+  double kld_bin_theta = 10.0 * M_PI / 180.0;  ///< [rad]
 };
+
+/// Fox's bound: the sample count that keeps the Kullback-Leibler distance between the
+/// maximum-likelihood histogram of `bins` occupied cells and the true one below `epsilon` with
+/// probability 1 - delta, `z` being the standard normal's 1 - delta quantile (the Wilson-Hilferty
+/// form of the chi-square quantile with bins - 1 degrees of freedom, halved over epsilon).
+/// 1 for a single cell; `bins` may be fractional (an expected count).
+double kldSampleCount(double bins, double epsilon, double z);
 
 struct ParticleEstimate {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -125,6 +142,9 @@ class ParticleFilter {
   const std::vector<double>& weights() const { return w_; }
   Rng& rng() { return rng_; }
   long resamples() const { return resamples_; }
+  /// KLD-sampling: how many resamplings drew more than `particles`, and the most drawn.
+  long resamplesAboveLeast() const { return resamples_above_least_; }
+  size_t mostDrawn() const { return most_drawn_; }
   void setMotion(const MotionNoise& motion) { params_.motion = motion; }
   /// The log of the measurements' marginal likelihood, p(z_1..z_k | odometry), summed over the
   /// normalisations since the last reset: each adds the log of the weights' sum against what
@@ -140,12 +160,23 @@ class ParticleFilter {
   void prepareStart();
   /// True while the start's extra particles are still there and the cloud has converged.
   bool readyToShrink() const;
+  /// How many particles a resampling draws once the start's extra ones are gone: `particles`,
+  /// or with KLD-sampling the smallest count m from it up to `max_particles` at which Fox's
+  /// bound over the histogram cells that m draws from the weights are expected to occupy,
+  /// sum over cells of 1 - (1 - W_cell)^m, is met.
+  size_t drawCount();
+  bool wide_start_ = false;  ///< the start's extra particles are still there
+  /// KLD-sampling's histogram: each particle's cell and weight, sorted by cell (reused).
+  std::vector<std::pair<std::array<long, 3>, double>> cells_;
+  std::vector<double> cell_mass_;
 
   ParticleSet set_, scratch_;
   std::vector<double> w_;
   std::vector<int> indices_;
   double last_ess_ = 0.0;
   long resamples_ = 0;
+  long resamples_above_least_ = 0;
+  size_t most_drawn_ = 0;
   double log_evidence_ = 0.0;
   double log_sum_before_ = 0.0;  ///< log of the weights' sum after the last normalisation
   bool initialised_ = false;

@@ -36,6 +36,12 @@ constexpr std::array<EnumName<InitMode>, 2> enumNames(InitMode) {
 /// The filter itself: particle count, resampling strategy, motion noise and start.
 struct ParticleCoreParams {
   int particles = 300;  ///< n
+  /// KLD-sampling's most particles (0, or at most n: a fixed count of n); see
+  /// ParticleFilterParams::max_particles.
+  int max_particles = 0;
+  double kld_epsilon = 0.05;
+  double kld_bin_xy = 0.5;          ///< [m]
+  double kld_bin_theta_deg = 10.0;  ///< [deg]
   ResamplerKind resampler = ResamplerKind::kSystematic;
   double ess = 0.5;                     ///< resample when ESS / N < this
   MotionNoise motion;                   ///< odometry sampling noise
@@ -51,7 +57,15 @@ struct ParticleCoreParams {
 
   template <class V>
   void visit(V&& v) {
-    v("n", particles, "particles");
+    v("n", particles, "particles (the fewest, with n_max)");
+    v("n_max", max_particles,
+      "KLD-sampling (Fox 2003): each resampling draws between n and this many particles, as many "
+      "as bound the Kullback-Leibler distance between the drawn set and the weighted one by "
+      "kld_epsilon with probability 0.99, over the cells the draw is expected to occupy; 0 (or "
+      "at most n): always n");
+    v("kld_epsilon", kld_epsilon, "KLD-sampling: the distance bound");
+    v("kld_bin", kld_bin_xy, "KLD-sampling: the histogram's cell width [m]");
+    v("kld_bin_theta", kld_bin_theta_deg, "KLD-sampling: the histogram's cell height [deg]");
     v("resampler", resampler, "multinomial, systematic, stratified or residual");
     v("ess", ess, "resample when ESS/N falls below this");
     v("a1", motion.alpha1, "odometry noise: rotation per radian");
