@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <map>
+#include <nlohmann/json.hpp>
 
 #include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
@@ -291,5 +292,41 @@ TEST(Benchmark, ReferenceBeyondTheRecordingCapsTheCoverage) {
   EXPECT_NE(md.find("0.844 / 0.844 (cov 0.83 of at most 0.83)"), std::string::npos) << md;
   EXPECT_NE(md.find("0.844 / 0.844 (cov 0.83) |"), std::string::npos) << md;
   EXPECT_NE(eval::formatBenchmarkJson({capped}, 1).find("\"coverage_max\": 0.83"),
+            std::string::npos);
+}
+
+// Issue 12's rule, said where the table is read: a mean more than 3 times the best of its column
+// (the same dataset and variant, among the cells with an estimate) is flagged in its cell and
+// listed under the table; the manifest-facts column has its own best.
+TEST(Benchmark, ACellOverThreeTimesItsColumnsBestIsFlagged) {
+  const auto cell = [](const char* dataset, const char* variant, const char* method, double mean,
+                       const char* flag = "") {
+    return eval::BenchmarkCell{dataset, variant, method, mean, mean, 1.0, 1.0, flag};
+  };
+  std::vector<eval::BenchmarkCell> cells{cell("a", "defaults", "m1", 0.10),
+                                         cell("a", "defaults", "m2", 0.35),
+                                         cell("a", "defaults", "m3", 0.0, "no_estimate"),
+                                         cell("a", "manifest facts", "m1", 0.30),
+                                         cell("a", "manifest facts", "m2", 0.35),
+                                         cell("b", "defaults", "m1", 0.20),
+                                         cell("b", "defaults", "m2", 0.60)};
+  eval::rateAgainstTheBest(cells);
+  EXPECT_NEAR(cells[0].times_best, 1.0, 1e-12);
+  EXPECT_NEAR(cells[1].times_best, 3.5, 1e-12);
+  EXPECT_EQ(cells[2].times_best, 0.0);
+  EXPECT_NEAR(cells[4].times_best, 0.35 / 0.30, 1e-12);
+  EXPECT_NEAR(cells[6].times_best, 3.0, 1e-12);  // at the limit: not over it
+  const std::string md = eval::formatBenchmarkMarkdown(cells, 1);
+  EXPECT_NE(md.find("| 0.350 / 0.350 (**3.5x the best**) |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| 0.600 / 0.600 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("1 cell(s) over 3 times the best of their column: m2 on a (3.5x)."),
+            std::string::npos)
+      << md;
+  const auto json = nlohmann::json::parse(eval::formatBenchmarkJson(cells, 1));
+  EXPECT_NEAR(json["cells"][1]["times_best"].get<double>(), 3.5, 1e-12);
+  EXPECT_TRUE(json["cells"][2]["times_best"].is_null());
+  cells.erase(cells.begin() + 1);
+  EXPECT_NE(eval::formatBenchmarkMarkdown(cells, 1).find(
+                "Every method is within 3 times the best of its column."),
             std::string::npos);
 }

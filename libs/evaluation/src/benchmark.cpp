@@ -81,6 +81,10 @@ std::string cellText(const BenchmarkCell& c) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "%.3f / %.3f", c.mean_rmse, c.worst_rmse);
   std::string s = buf;
+  if (c.times_best > kTimesBestLimit) {
+    std::snprintf(buf, sizeof buf, " (**%.1fx the best**)", c.times_best);
+    s += buf;
+  }
   if (c.coverage < 0.9) {
     if (c.coverage_max < 0.9)
       std::snprintf(buf, sizeof buf, " (cov %.2f of at most %.2f)", c.coverage, c.coverage_max);
@@ -201,7 +205,25 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
       }
     }
   }
+  rateAgainstTheBest(cells);
   return cells;
+}
+
+namespace {
+bool hasEstimate(const BenchmarkCell& c) {
+  return c.flag.empty() && std::isfinite(c.mean_rmse) && c.mean_rmse > 0.0;
+}
+}  // namespace
+
+void rateAgainstTheBest(std::vector<BenchmarkCell>& cells) {
+  std::map<std::pair<std::string, std::string>, double> best;
+  for (const auto& c : cells) {
+    if (!hasEstimate(c)) continue;
+    const auto [it, fresh] = best.try_emplace({c.dataset, c.variant}, c.mean_rmse);
+    if (!fresh) it->second = std::min(it->second, c.mean_rmse);
+  }
+  for (auto& c : cells)
+    c.times_best = hasEstimate(c) ? c.mean_rmse / best.at({c.dataset, c.variant}) : 0.0;
 }
 
 std::string markdownTableHeader(const std::string& first, const std::vector<std::string>& columns) {
@@ -225,8 +247,10 @@ std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int
   md << "2D RMSE [m], mean / worst over seeds 1-" << seeds
      << ", defaults only (a column marked \"manifest facts\" also uses the range noise the "
         "manifest states); cov = coverage when under 0.9 (\"of at most\": the most any method "
-        "can cover, where the reference outlasts the recording's measurements); blank: the "
-        "dataset lacks the method's sensors.\n\n"
+        "can cover, where the reference outlasts the recording's measurements); \"Nx the "
+        "best\": the mean is more than "
+     << kTimesBestLimit
+     << " times the best of its column; blank: the dataset lacks the method's sensors.\n\n"
      << markdownTableHeader("method", columns);
   for (const auto& r : rows) {
     md << "| " << r << " |";
@@ -235,6 +259,22 @@ std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int
       md << " " << (it == at.end() ? "" : cellText(*it->second)) << " |";
     }
     md << "\n";
+  }
+  std::vector<std::string> over;
+  for (const auto& c : cells)
+    if (c.times_best > kTimesBestLimit) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, " (%.1fx)", c.times_best);
+      over.push_back(c.method + " on " + c.dataset +
+                     (c.variant == "defaults" ? "" : " [" + c.variant + "]") + buf);
+    }
+  if (over.empty()) {
+    md << "\nEvery method is within " << kTimesBestLimit << " times the best of its column.\n";
+  } else {
+    md << "\n"
+       << over.size() << " cell(s) over " << kTimesBestLimit << " times the best of their column: ";
+    for (size_t i = 0; i < over.size(); ++i) md << (i ? ", " : "") << over[i];
+    md << ".\n";
   }
   return md.str();
 }
@@ -245,14 +285,16 @@ std::string formatBenchmarkJson(const std::vector<BenchmarkCell>& cells, int see
   j["cells"] = nlohmann::json::array();
   auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
   for (const auto& c : cells)
-    j["cells"].push_back({{"dataset", c.dataset},
-                          {"variant", c.variant},
-                          {"method", c.method},
-                          {"rmse_2d_mean", number(c.mean_rmse)},
-                          {"rmse_2d_worst", number(c.worst_rmse)},
-                          {"coverage", number(c.coverage)},
-                          {"coverage_max", number(c.coverage_max)},
-                          {"flag", c.flag.empty() ? nlohmann::json() : nlohmann::json(c.flag)}});
+    j["cells"].push_back(
+        {{"dataset", c.dataset},
+         {"variant", c.variant},
+         {"method", c.method},
+         {"rmse_2d_mean", number(c.mean_rmse)},
+         {"rmse_2d_worst", number(c.worst_rmse)},
+         {"coverage", number(c.coverage)},
+         {"coverage_max", number(c.coverage_max)},
+         {"times_best", c.times_best > 0.0 ? number(c.times_best) : nlohmann::json()},
+         {"flag", c.flag.empty() ? nlohmann::json() : nlohmann::json(c.flag)}});
   return j.dump(1) + "\n";
 }
 

@@ -40,7 +40,17 @@ struct BenchmarkCell {
   /// the recording's measurements (data::referenceReach).
   double coverage_max = 1.0;
   std::string flag;  ///< resultFlag()
+  /// The mean over the best mean of the cells of the same dataset and variant that have an
+  /// estimate (rateAgainstTheBest); 0 for a cell without one.
+  double times_best = 0.0;
 };
+
+/// The most times the best of its column a method's mean may be before the table flags it.
+constexpr double kTimesBestLimit = 3.0;
+
+/// Sets every cell's times_best (runBenchmark does; cells built elsewhere need it before the
+/// tables flag them).
+void rateAgainstTheBest(std::vector<BenchmarkCell>& cells);
 
 /// Throws ParamError for a spec that names no method or a parameter its method does not take
 /// (runBenchmark checks its own; a caller checks before preparing the datasets).
@@ -55,7 +65,8 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
 /// A Markdown table's header: "| first | c1 | c2 |" and its separator row, each with its newline.
 std::string markdownTableHeader(const std::string& first, const std::vector<std::string>& columns);
 
-/// Methods as rows, datasets (and variants) as columns: "mean / worst" per cell.
+/// Methods as rows, datasets (and variants) as columns: "mean / worst" per cell, a cell over
+/// kTimesBestLimit times its column's best flagged in the cell and listed under the table.
 std::string formatBenchmarkMarkdown(const std::vector<BenchmarkCell>& cells, int seeds);
 std::string formatBenchmarkJson(const std::vector<BenchmarkCell>& cells, int seeds);
 
