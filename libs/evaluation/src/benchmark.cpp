@@ -75,6 +75,10 @@ void addCarmen(const BenchmarkOptions& o, const std::string& log_name,
                      req, (fs::path(o.work_dir) / "carmen" / (log_name + "_uwb")).string())});
 }
 
+bool hasEstimate(const BenchmarkCell& c) {
+  return c.flag.empty() && std::isfinite(c.mean_rmse) && c.mean_rmse > 0.0;
+}
+
 std::string cellText(const BenchmarkCell& c) {
   if (c.flag == "no_estimate") return "no estimate";
   if (c.flag.rfind("error:", 0) == 0) return "error";
@@ -208,12 +212,6 @@ std::vector<BenchmarkCell> runBenchmark(const std::vector<BenchmarkDataset>& dat
   rateAgainstTheBest(cells);
   return cells;
 }
-
-namespace {
-bool hasEstimate(const BenchmarkCell& c) {
-  return c.flag.empty() && std::isfinite(c.mean_rmse) && c.mean_rmse > 0.0;
-}
-}  // namespace
 
 void rateAgainstTheBest(std::vector<BenchmarkCell>& cells) {
   std::map<std::pair<std::string, std::string>, double> best;

@@ -129,7 +129,7 @@ double kldSampleCount(double bins, double epsilon, double z) {
 
 void ParticleFilter::prepareStart() {
   const auto n = static_cast<size_t>(std::max({1, params_.particles, params_.initial_particles}));
-  wide_start_ = n > static_cast<size_t>(std::max(1, params_.particles));
+  wide_start_ = n > leastCount();
   // Every array is sized for the largest count it will hold, so that a resampling to a larger
   // count allocates nothing.
   const auto most = std::max(n, static_cast<size_t>(std::max(0, params_.max_particles)));
@@ -261,7 +261,7 @@ bool ParticleFilter::normalizeAndResample() {
   if (shrink) wide_start_ = false;
   if (!wide_start_) {
     n = drawCount();
-    if (n > static_cast<size_t>(std::max(1, params_.particles))) ++resamples_above_least_;
+    if (n > leastCount()) ++resamples_above_least_;
     most_drawn_ = std::max(most_drawn_, n);
   }
   indices_.resize(n);  // never grows past the reserved size: no allocation
@@ -286,7 +286,7 @@ bool ParticleFilter::normalizeAndResample() {
 }
 
 size_t ParticleFilter::drawCount() {
-  const auto least = static_cast<size_t>(std::max(1, params_.particles));
+  const size_t least = leastCount();
   if (params_.max_particles <= params_.particles) return least;
   // The weighted set's histogram: the mass of each occupied cell.
   cells_.clear();

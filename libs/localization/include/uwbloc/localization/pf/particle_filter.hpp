@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -165,6 +166,8 @@ class ParticleFilter {
   /// bound over the histogram cells that m draws from the weights are expected to occupy,
   /// sum over cells of 1 - (1 - W_cell)^m, is met.
   size_t drawCount();
+  /// The count the filter tracks with: `particles`, at least 1.
+  size_t leastCount() const { return static_cast<size_t>(std::max(1, params_.particles)); }
   bool wide_start_ = false;  ///< the start's extra particles are still there
   /// KLD-sampling's histogram: each particle's cell and weight, sorted by cell (reused).
   std::vector<std::pair<std::array<long, 3>, double>> cells_;
