@@ -152,6 +152,19 @@ TEST(Cli, CompareWritesTheRunDirectory) {
     EXPECT_NE(text.find(key), std::string::npos) << key;
 }
 
+// The benchmark writes its tables into a folder that does not exist yet, even when no dataset
+// needed importing there (the MRPT demo alone: it failed with "cannot write file" before).
+TEST(Cli, BenchmarkCreatesItsFolder) {
+  const auto dir = uwbloc::test::scratchDir();
+  std::filesystem::create_directories(dir / "empty");
+  const auto out = dir / "new" / "bench";
+  const auto r = runCli("benchmark --data-dir " + (dir / "empty").string() +
+                        " --datasets mrpt_demo -m uwb-ls --seeds 1 -o " + out.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(out / "benchmark.md"));
+  EXPECT_TRUE(std::filesystem::exists(out / "benchmark.json"));
+}
+
 TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {
   // 300 ranges written with six significant digits: two distinct stamps.
   const auto dir = uwbloc::test::scratchDir();

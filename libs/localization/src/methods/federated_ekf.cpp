@@ -71,10 +71,11 @@ bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
       kalman::inGate(kalman::innovate<N, 1>(local.p, y, hj, rv), uwb::ChiSquareGate(params_.gate)));
   if (used) {
     if (fold_blind_) {
-      const auto fold = rangeFold(kalman::cubaturePoints<N>(x_, p_), x_, r, std::sqrt(rv(0)));
+      const auto fold =
+          rangeFold(kalman::cubaturePoints<N>(x_, p_), x_, r, std::sqrt(rv(0)), this->sideSigmas());
       if (fold) {
-        ++this->stats_.events["blind_across_fold"];
-        Base::blindAlong(hj, *fold);
+        ++this->stats_.events[fold->side_known ? "linearised_at_fold" : "blind_across_fold"];
+        if (!fold->side_known) Base::blindAlong(hj, fold->axis);
       }
     }
     kalman::josephUpdate<N, 1>(local.x, local.p, kalman::innovate<N, 1>(local.p, y, hj, rv), hj,

@@ -32,7 +32,8 @@ typename UwbCkfT<N>::RangePrediction UwbCkfT<N>::predictRange(const AcceptedRang
   this->boundHeadingSpread(p_);
   const auto points = kalman::cubaturePoints<N>(x_, p_);
   fold_.reset();
-  if (fold_blind_) fold_ = rangeFold(points, x_, r, std::sqrt(this->rangeVariance(r)));
+  if (fold_blind_)
+    fold_ = rangeFold(points, x_, r, std::sqrt(this->rangeVariance(r)), this->sideSigmas());
   if (fold_) {
     const auto pred = Base::predictRange(r);
     pzz_ = pred.s - this->rangeVariance(r);
@@ -47,8 +48,7 @@ typename UwbCkfT<N>::RangePrediction UwbCkfT<N>::predictRange(const AcceptedRang
 template <int N>
 void UwbCkfT<N>::cubatureCorrect(double y, double r_var) {
   if (fold_) {
-    ++stats_.events["blind_across_fold"];
-    this->linearCorrect(y, r_var, &*fold_);
+    this->foldCorrect(y, r_var, *fold_);
   } else if (hinf_ > 0.0) {
     kalman::Mat<N, N> position = kalman::Mat<N, N>::Zero();  // the bound is on (x, y)
     position(0, 0) = position(1, 1) = 1.0;
@@ -172,7 +172,8 @@ typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const Accepted
   if (this->boundHeadingSpread(p_)) s_ = kalman::lowerSquareRoot<N>(p_);
   points_ = kalman::unscentedPoints<N>(x_, s_, sr_.alpha, sr_.beta, sr_.kappa);
   fold_.reset();
-  if (sr_.fold_blind) fold_ = rangeFold(points_, x_, r, std::sqrt(this->rangeVariance(r)));
+  if (sr_.fold_blind)
+    fold_ = rangeFold(points_, x_, r, std::sqrt(this->rangeVariance(r)), this->sideSigmas());
   if (fold_) return Base::predictRange(r);
   moments_ = kalman::propagate<N, 1>(
       points_, x_, [&](const State& x) { return Range1(Base::rangeModel(x, r)); });
@@ -182,8 +183,7 @@ typename UwbSrukfT<N>::RangePrediction UwbSrukfT<N>::predictRange(const Accepted
 template <int N>
 void UwbSrukfT<N>::correctWithRange(const AcceptedRange& r, double y, const RangePrediction&) {
   if (fold_) {
-    ++stats_.events["blind_across_fold"];
-    this->linearCorrect(y, this->rangeVariance(r), &*fold_);
+    this->foldCorrect(y, this->rangeVariance(r), *fold_);
     s_ = kalman::lowerSquareRoot<N>(p_);
     return;
   }

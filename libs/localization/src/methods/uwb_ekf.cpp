@@ -168,13 +168,13 @@ void UwbEkfT<N>::linearCorrect(double y, double r_var, const Eigen::Vector2d* bl
 }
 
 template <int N, int K>
-std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
-                                         const kalman::Vec<N>& x, const AcceptedRange& r,
-                                         double depth) {
+std::optional<RangeFold> rangeFold(const kalman::PointSet<N, K>& points, const kalman::Vec<N>& x,
+                                   const AcceptedRange& r, double depth, double side_sigmas) {
   static_assert(K == 2 * N || K == 2 * N + 1, "a symmetric point set");
   constexpr int first = K - 2 * N;  // the unscented set's mean point comes first
-  const double at_mean = UwbEkfT<N>::rangeModel(x, r);
-  std::optional<Eigen::Vector2d> fold;
+  typename UwbEkfT<N>::Jacobian hj;
+  const double at_mean = UwbEkfT<N>::rangeModel(x, r, &hj);
+  std::optional<RangeFold> fold;
   double deepest = depth;
   for (int i = first; i < first + N; ++i) {
     const double plus = UwbEkfT<N>::rangeModel(points.x.col(i), r) - at_mean;
@@ -183,8 +183,15 @@ std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
     const double fold_depth = std::min(std::abs(plus), std::abs(minus));
     if (plus * minus > 0.0 && fold_depth > deepest && along.norm() > 0.0) {
       deepest = fold_depth;
-      fold = along.normalized();
+      fold = RangeFold{along.normalized()};
     }
+  }
+  if (fold) {
+    // The position part of the Jacobian is (tag - anchor)_xy / r: s is the tag's offset along
+    // the axis from the point of closest approach.
+    const double s = at_mean * hj.template head<2>().dot(fold->axis);
+    const double least = std::sqrt(std::max(at_mean * at_mean - s * s, 0.0));
+    fold->side_known = at_mean - least > side_sigmas * depth;
   }
   return fold;
 }
@@ -462,18 +469,14 @@ bool UwbEkfT<N>::admit(const AcceptedRange& r, double innovation, bool in_gate) 
                            stats_);
 }
 
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 8>&,
-                                                  const kalman::Vec<4>&, const AcceptedRange&,
-                                                  double);
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 12>&,
-                                                  const kalman::Vec<6>&, const AcceptedRange&,
-                                                  double);
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<4, 9>&,
-                                                  const kalman::Vec<4>&, const AcceptedRange&,
-                                                  double);
-template std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<6, 13>&,
-                                                  const kalman::Vec<6>&, const AcceptedRange&,
-                                                  double);
+template std::optional<RangeFold> rangeFold(const kalman::PointSet<4, 8>&, const kalman::Vec<4>&,
+                                            const AcceptedRange&, double, double);
+template std::optional<RangeFold> rangeFold(const kalman::PointSet<6, 12>&, const kalman::Vec<6>&,
+                                            const AcceptedRange&, double, double);
+template std::optional<RangeFold> rangeFold(const kalman::PointSet<4, 9>&, const kalman::Vec<4>&,
+                                            const AcceptedRange&, double, double);
+template std::optional<RangeFold> rangeFold(const kalman::PointSet<6, 13>&, const kalman::Vec<6>&,
+                                            const AcceptedRange&, double, double);
 template class UwbEkfT<4>;
 template class UwbEkfT<6>;
 

@@ -17,7 +17,8 @@
 //   - uwb-srukf: the square-root unscented filter (van der Merwe & Wan 2001; the paper compares
 //     an improved variant, ISRUKF, whose changes were lost with its equations).
 // A range that folds over the points (rangeFold: the tag near the line through two anchors) is
-// taken by the EKF's update blind along the fold (`fold_blind`, on by default).
+// taken by the EKF's update (`fold_blind`, on by default): blind along the fold while the mean
+// is near it, linearised at the mean once the range tells the mean's side.
 // The constant-velocity time update is linear, so the cubature filters propagate it exactly
 // (F P F^T + Q, as the points would); the square-root filter propagates its points and S.
 // Each is uwb-ekf's UwbEkfT<N>: on the primary tag (N = 4) or, with two tags or more, on the
@@ -71,7 +72,7 @@ class UwbCkfT : public UwbEkfT<N> {
 
   double hinf_;
   bool fold_blind_;
-  std::optional<Eigen::Vector2d> fold_;  ///< the last predictRange's fold (rangeFold)
+  std::optional<RangeFold> fold_;  ///< the last predictRange's fold (rangeFold)
   double pzz_ = 0.0;
   kalman::PointMoments<N, 1, 2 * N> moments_;  ///< of the last predictRange
 };
@@ -175,7 +176,7 @@ class UwbSrukfT : public UwbEkfT<N> {
 
  private:
   UwbSrukfParams sr_;
-  std::optional<Eigen::Vector2d> fold_;    ///< the last predictRange's fold (rangeFold)
+  std::optional<RangeFold> fold_;          ///< the last predictRange's fold (rangeFold)
   Covariance s_ = Covariance::Identity();  ///< P = S S^T
   kalman::PointSet<N, 2 * N + 1> points_;
   kalman::PointMoments<N, 1, 2 * N + 1> moments_;

@@ -113,10 +113,20 @@ inline constexpr const char* kFoldBlindHelp =
     "a range that folds over the state's spread (along one axis of the cubature points it is "
     "longer, or shorter, on both sides of the mean, each by more than the range's std: the tag "
     "near the line through two anchors, or the spread reaching past the anchor) is taken by the "
-    "EKF's update blind along that axis (1, event blind_across_fold: the position crosses the "
-    "fold on its velocity) or as it is (0: the points' moments average the fold's two sides and "
-    "learn nothing across it; the slope at the mean throws the state across on a range a few "
-    "centimetres short)";
+    "EKF's update: blind along that axis while the mean is within sqrt(gate) range stds of the "
+    "fold (1, event blind_across_fold: the position crosses the fold on its velocity), and "
+    "linearised at the mean once the range there exceeds the fold's least by more (event "
+    "linearised_at_fold: the mean's side is then told by the range); or as it is (0: the "
+    "points' moments average the fold's two sides and learn nothing across it; the slope at the "
+    "mean throws the state across on a range a few centimetres short)";
+
+/// A range's fold over a point set (rangeFold).
+struct RangeFold {
+  Eigen::Vector2d axis;  ///< the unit direction in the plane along which the range folds
+  /// The range at the mean exceeds the least range along `axis` by more than the noise: the
+  /// mean's side of the fold is known, and the linearisation at the mean holds.
+  bool side_known = false;
+};
 
 /// The direction in the plane along which the range of `r` folds over the symmetric points
 /// `points` about the mean `x` (the cubature set, 2N points x +- c_i, or the unscented one, the
@@ -125,14 +135,21 @@ inline constexpr const char* kFoldBlindHelp =
 /// Along it the range is not monotone across the spread (the tag near the line through two
 /// anchors, moving along it; or the spread reaching past the anchor), and the points' moments
 /// average its two sides: P_xz near zero, P_zz inflated by the curvature, the predicted range
-/// biased long. The linearisation at the mean is no better there: its slope along the fold is
-/// the mean's small offset from the line, and a range a few centimetres short throws the state
-/// across it. So with `fold_blind` the point filters and federated-ekf take such a range by the
-/// EKF's update with the Jacobian's component along the fold removed (UwbEkfT::linearCorrect).
+/// biased long. The linearisation at the mean is no better near the fold: its slope along the
+/// fold is the mean's small offset from the line, and a range a few centimetres short throws
+/// the state across it. So with `fold_blind` the point filters and federated-ekf take such a
+/// range by the EKF's update with the Jacobian's component along the fold removed
+/// (UwbEkfT::linearCorrect), while the mean is near the fold. Near means that the range at the
+/// mean, r, exceeds the least range along the axis, sqrt(r^2 - s^2) with s = (tag - anchor) .
+/// axis, by at most `side_sigmas` times `depth` (the range's std): within the noise, the range
+/// cannot tell the mean's side. Beyond, `side_known` is set and the filters take the EKF's full
+/// update at the mean: the fold is then the spread's, not the mean's (the spread grows while a
+/// range is blind across it, so the points fold ever more often: on the MRPT demo, blind on
+/// every range, the cubature filter's spread along the fold reached 3.7 m within 9 s and, with
+/// no restart, it was lost for good: 5.2 m RMSE).
 template <int N, int K>
-std::optional<Eigen::Vector2d> rangeFold(const kalman::PointSet<N, K>& points,
-                                         const kalman::Vec<N>& x, const AcceptedRange& r,
-                                         double depth);
+std::optional<RangeFold> rangeFold(const kalman::PointSet<N, K>& points, const kalman::Vec<N>& x,
+                                   const AcceptedRange& r, double depth, double side_sigmas);
 
 /// The quarantine of uwb-ekf and the filters built on it (see the top of this file): a link
 /// whose range failed the gate is used again only after `readmit` in-gate ranges in a row, each
@@ -225,6 +242,15 @@ class UwbEkfT : public UwbEstimator {
   /// the Jacobian's position part less its component along it: the range then moves the state
   /// along `blind` only through the covariance's correlations.
   void linearCorrect(double y, double r_var, const Eigen::Vector2d* blind = nullptr);
+  /// The update of a range that folds over the points (rangeFold): linearCorrect blind along the
+  /// fold (event blind_across_fold), or at the mean when the fold's side is known (event
+  /// linearised_at_fold).
+  void foldCorrect(double y, double r_var, const RangeFold& fold) {
+    ++stats_.events[fold.side_known ? "linearised_at_fold" : "blind_across_fold"];
+    linearCorrect(y, r_var, fold.side_known ? nullptr : &fold.axis);
+  }
+  /// rangeFold's `side_sigmas`: the gate's, sqrt(gate) range stds.
+  double sideSigmas() const { return std::sqrt(params_.gate); }
   /// Removes from the Jacobian's position part its component along the unit vector `axis` (the
   /// fold's blind update, rangeFold).
   static void blindAlong(Jacobian& h, const Eigen::Vector2d& axis) {
