@@ -175,6 +175,88 @@ TEST(CsvImport, AReferenceWithoutHeadingIsNotScoredForHeading) {
   EXPECT_TRUE(std::isnan(m.metrics.rmse_yaw_deg));
 }
 
+// Units a device log often carries: stamps in milliseconds, microseconds or nanoseconds since the
+// epoch (after the year 3000 read as seconds) and ranges in millimetres or centimetres (a median
+// range over 10 times the anchors' 8 m spacing and over 100 m). Each file is read in the unit
+// that makes sense of it, loudly, and the recording scores as the one in seconds and metres.
+// Asked for seconds, the milliseconds are refused, every row, and the import fails naming the
+// file; ranges no unit puts among the anchors are an error; stamps in milliseconds from zero
+// (epochs a second apart read as 1000 s) are warned about.
+TEST(CsvImport, TimeAndRangeUnitsFromTheData) {
+  const auto dir = test::scratchDir();
+  const std::string anchors = test::writeText(dir / "a.csv", "1,0,0,1\n2,8,0,1\n3,0,8,1\n");
+  // The ranges with stamps t0 + 0.1 k s and the reference, in the given units.
+  const auto write = [&](const std::string& name, double t0, double per_second, double per_metre,
+                         double ref_per_second) {
+    std::string ranges = "t,anchor_id,range\n", ref;
+    for (int k = 0; k < 100; ++k) {
+      const double t = t0 + 0.1 * k;
+      const Eigen::Vector3d p(2.0 + 0.01 * k, 3.0, 1.0);
+      for (int a = 1; a <= 3; ++a) {
+        const Eigen::Vector3d anchor = a == 1   ? Eigen::Vector3d(0, 0, 1)
+                                       : a == 2 ? Eigen::Vector3d(8, 0, 1)
+                                                : Eigen::Vector3d(0, 8, 1);
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "%.6f,%d,%.9g\n", t * per_second, a,
+                      (anchor - p).norm() * per_metre);
+        ranges += buf;
+      }
+      char buf[120];
+      std::snprintf(buf, sizeof buf, "%.6f %.4f %.4f\n", t * ref_per_second, p.x(), p.y());
+      ref += buf;
+    }
+    data::CsvImportRequest r;
+    r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
+    r.anchors = anchors;
+    r.reference = test::writeText(dir / (name + "_ref.txt"), ref);
+    r.tag_height = 1.0;
+    return r;
+  };
+  const auto noted = [](const data::ImportSummary& s, const std::string& what) {
+    for (const auto& n : s.notes)
+      if (n.find("WARNING") != std::string::npos && n.find(what) != std::string::npos) return true;
+    return false;
+  };
+  const double t0 = 1.7e9;  // 2023, in seconds since the epoch
+  const auto ms_mm = write("ms_mm", t0, 1e3, 1e3, 1e9);
+  const auto s = data::importCsv(ms_mm, (dir / "ms_mm").string());
+  EXPECT_EQ(s.ranges, 300);
+  EXPECT_TRUE(noted(s, "milliseconds"));
+  EXPECT_TRUE(noted(s, "millimetres"));
+  EXPECT_TRUE(noted(s, "nanoseconds"));  // the reference's
+  const auto ds = data::loadDataset(s.manifest, "");
+  EXPECT_NEAR(ds.ground_truth.front().t, t0, 1e-3);
+  EXPECT_LT(eval::evaluateMethod(ds, "uwb-gn", 1, 1).metrics.rmse_2d, 1e-3);
+  const auto us_cm = data::importCsv(write("us_cm", t0, 1e6, 1e2, 1.0), (dir / "us").string());
+  EXPECT_TRUE(noted(us_cm, "microseconds"));
+  EXPECT_TRUE(noted(us_cm, "centimetres"));
+  EXPECT_FALSE(noted(us_cm, "nanoseconds"));
+  EXPECT_LT(
+      eval::evaluateMethod(data::loadDataset(us_cm.manifest, ""), "uwb-gn", 1, 1).metrics.rmse_2d,
+      1e-3);
+  // Seconds and metres as they are: no warning.
+  for (const auto& n :
+       data::importCsv(write("s_m", t0, 1.0, 1.0, 1.0), (dir / "sm").string()).notes)
+    EXPECT_EQ(n.find("WARNING"), std::string::npos) << n;
+
+  auto seconds = ms_mm;
+  seconds.time_unit = "s";
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importCsv(seconds, (dir / "s").string()); },
+      {"ms_mm_ref.txt:1", "absurd_time", "--time-unit"});
+  seconds.reference.clear();
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importCsv(seconds, (dir / "s").string()); },
+      {"ms_mm_r.csv", "no usable range", "range_absurd_time 300", "--time-unit"});
+  auto far = write("far", t0, 1.0, 1e4, 1.0);  // neither cm (over 24 m) nor mm (under 0.8 m)
+  test::expectErrorMentions<data::InputError>([&] { data::importCsv(far, (dir / "f").string()); },
+                                              {"far_r.csv", "--range-unit"});
+  far.range_unit = "mm";
+  EXPECT_EQ(data::importCsv(far, (dir / "f").string()).ranges, 300);
+  const auto from_zero = write("zero", 0.0, 1e4, 1.0, 1e4);  // 0.1 s read as 1000 s
+  EXPECT_TRUE(noted(data::importCsv(from_zero, (dir / "z").string()), "--time-unit ms"));
+}
+
 // A scan that does not start at -aperture/2 keeps its rays' directions: the sensor turns by the
 // scan's centre angle.
 TEST(CsvImport, AnAsymmetricScanKeepsItsRayDirections) {

@@ -79,6 +79,19 @@ void ImportCommand::declare(CLI::App& parser) {
                   "count, or dead reckoning against --reference")
       ->check(CLI::IsMember({"auto", "increments", "poses", "velocities"}))
       ->capture_default_str();
+  cmd->add_option("--time-unit", csv_.time_unit,
+                  "csv: the unit of every file's time column; auto: seconds, unless a file's "
+                  "median stamp would then be after the year 3000, where the first of ms, us "
+                  "and ns that brings it before is taken (with a warning)")
+      ->check(CLI::IsMember({"auto", "s", "ms", "us", "ns"}))
+      ->capture_default_str();
+  cmd->add_option("--range-unit", csv_.range_unit,
+                  "csv: the unit of the ranges; auto: metres, unless their median is over 10 "
+                  "times the anchors' largest spacing and over 100 m, where the one of cm and mm "
+                  "that puts the tag among the anchors is taken (with a warning; an error when "
+                  "neither or both do)")
+      ->check(CLI::IsMember({"auto", "m", "cm", "mm"}))
+      ->capture_default_str();
   cmd->add_option("--imu", csv_.imu, "csv: IMU 't,gx,gy,gz,ax,ay,az' [rad/s, m/s^2]");
   cmd->add_option("--reference", csv_.reference,
                   "csv: reference poses, TUM or 't,x,y[,theta]' (without theta no heading is "

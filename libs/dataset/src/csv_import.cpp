@@ -57,10 +57,93 @@ Table readTable(const std::string& path) {
   return t;
 }
 
-// The time of a row, or nothing (counted) when it cannot be used.
+double medianOf(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// The finite numbers in column `col` of the rows (a field that does not parse is left to the
+// reader, which names its line).
+std::vector<double> columnValues(const Table& table, size_t col) {
+  std::vector<double> v;
+  for (const auto& row : table.rows) {
+    if (col >= row.second.size()) continue;
+    const std::string& text = row.second[col];
+    char* end = nullptr;
+    const double x = std::strtod(text.c_str(), &end);
+    if (!text.empty() && end == text.c_str() + text.size() && std::isfinite(x)) v.push_back(x);
+  }
+  return v;
+}
+
+// Seconds per unit of the time column `col` of `path` (CsvImportRequest::time_unit).
+double timeScale(const Table& table, size_t col, const std::string& unit, const std::string& path,
+                 ImportSummary& s) {
+  if (unit != "auto") return secondsPerTimeUnit(unit);
+  const auto times = columnValues(table, col);
+  if (times.empty()) return 1.0;
+  const double median = medianOf(times);
+  if (!(median > kLatestTimestamp)) return 1.0;
+  static const std::pair<const char*, double> kUnits[] = {
+      {"milliseconds", 1e-3}, {"microseconds", 1e-6}, {"nanoseconds", 1e-9}};
+  for (const auto& [name, scale] : kUnits) {
+    if (median * scale > kLatestTimestamp) continue;
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "WARNING: %s: times read as %s: in seconds their median, %.6g, is after the "
+                  "year 3000 (--time-unit sets the unit)",
+                  path.c_str(), name, median);
+    s.notes.emplace_back(buf);
+    return scale;
+  }
+  return 1.0;  // beyond nanoseconds too: refused row by row
+}
+
+// Metres per unit of the ranges `values` of `path` (CsvImportRequest::range_unit).
+double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anchor>& anchors,
+                  const std::string& unit, const std::string& path, ImportSummary& s) {
+  if (unit == "m") return 1.0;
+  if (unit == "cm") return 1e-2;
+  if (unit == "mm") return 1e-3;
+  if (unit != "auto")
+    throw InputError("import csv: --range-unit must be auto, m, cm or mm, got '" + unit + "'");
+  if (values.empty()) return 1.0;
+  double spacing = 0.0;
+  for (size_t i = 0; i < anchors.size(); ++i)
+    for (size_t j = i + 1; j < anchors.size(); ++j)
+      spacing = std::max(spacing, (anchors[i].position - anchors[j].position).norm());
+  const double median = medianOf(values);
+  if (!(median > std::max(10.0 * spacing, 100.0))) return 1.0;
+  // The readings that put the tag among the anchors: a median range between a tenth of and 3
+  // times their largest spacing.
+  std::vector<std::pair<const char*, double>> fits;
+  for (const auto& [name, scale] :
+       {std::pair<const char*, double>{"centimetres", 1e-2}, {"millimetres", 1e-3}})
+    if (median * scale >= 0.1 * spacing && median * scale <= std::max(3.0 * spacing, 3.0))
+      fits.emplace_back(name, scale);
+  char buf[400];
+  if (fits.size() != 1) {
+    std::snprintf(buf, sizeof buf,
+                  "the ranges' median, %.6g, is over 10 times the anchors' largest spacing "
+                  "(%.3g m) and over 100 m, so not metres, and %s: give --range-unit m, cm or mm",
+                  median, spacing,
+                  fits.empty() ? "neither centimetres nor millimetres put the tag among the anchors"
+                               : "both centimetres and millimetres would put the tag among them");
+    throwInputError(path, 0, buf);
+  }
+  std::snprintf(buf, sizeof buf,
+                "WARNING: %s: ranges read as %s: in metres their median, %.6g m, is over 10 times "
+                "the anchors' largest spacing (%.3g m) and over 100 m (--range-unit sets the unit)",
+                path.c_str(), fits.front().first, median, spacing);
+  s.notes.emplace_back(buf);
+  return fits.front().second;
+}
+
+// The time of a row in seconds (the column's value times `scale`), or nothing (counted) when it
+// cannot be used.
 std::optional<double> rowTime(const std::string& text, const std::string& path, int line,
-                              const std::string& what, ImportSummary& s) {
-  const double t = parseNumber(text, path, line, "t");
+                              const std::string& what, ImportSummary& s, double scale) {
+  const double t = parseNumber(text, path, line, "t") * scale;
   if (const char* problem = timestampProblem(t)) {
     ++s.skipped[what + "_" + problem];
     return std::nullopt;
@@ -68,7 +151,8 @@ std::optional<double> rowTime(const std::string& text, const std::string& path, 
   return t;
 }
 
-long readRanges(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {
+long readRanges(const CsvImportRequest& req, const std::vector<uwb::Anchor>& anchors,
+                std::vector<loc::Event>& events, ImportSummary& s) {
   const std::string& path = req.ranges;
   const Table table = readTable(path);
   int ct = 0, ca = 1, cr = 2, ctag = -1, crx = -1, cfp = -1;
@@ -94,18 +178,22 @@ long readRanges(const CsvImportRequest& req, std::vector<loc::Event>& events, Im
                     "expected 't,anchor_id,range[,tag_id][,rx_power,fp_power]', got " +
                         std::to_string(width) + " fields");
   }
+  const double t_scale = timeScale(table, static_cast<size_t>(ct), req.time_unit, path, s);
+  const double r_scale =
+      rangeScale(columnValues(table, static_cast<size_t>(cr)), anchors, req.range_unit, path, s);
   long n = 0;
+  std::vector<double> stamps;
   for (const auto& [line, f] : table.rows) {
     if (f.size() != width)
       throwInputError(path, line,
                       "expected " + std::to_string(width) + " fields like the first row, got " +
                           std::to_string(f.size()));
-    const auto t = rowTime(f[static_cast<size_t>(ct)], path, line, "range", s);
+    const auto t = rowTime(f[static_cast<size_t>(ct)], path, line, "range", s, t_scale);
     if (!t) continue;
     uwb::Range r;
     r.t = *t;
     r.anchor_id = parseId(f[static_cast<size_t>(ca)], path, line, "anchor_id");
-    r.range = parseNumber(f[static_cast<size_t>(cr)], path, line, "range");
+    r.range = parseNumber(f[static_cast<size_t>(cr)], path, line, "range") * r_scale;
     if (!std::isfinite(r.range)) {
       ++s.skipped["range_non_finite"];
       continue;
@@ -124,7 +212,22 @@ long readRanges(const CsvImportRequest& req, std::vector<loc::Event>& events, Im
       r.on_robot = r.tag_id == 0;
     }
     events.emplace_back(r);
+    stamps.push_back(r.t);
     ++n;
+  }
+  // Relative stamps in milliseconds read as seconds: epochs tens of seconds apart (an anchor
+  // answers several times a second).
+  std::sort(stamps.begin(), stamps.end());
+  stamps.erase(std::unique(stamps.begin(), stamps.end()), stamps.end());
+  std::vector<double> gaps;
+  for (size_t i = 1; i < stamps.size(); ++i) gaps.push_back(stamps[i] - stamps[i - 1]);
+  if (req.time_unit == "auto" && t_scale == 1.0 && gaps.size() >= 10 && medianOf(gaps) > 30.0) {
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "WARNING: %s: the ranges' epochs are a median %.4g s apart: if the times are "
+                  "in milliseconds, give --time-unit ms",
+                  path.c_str(), medianOf(gaps));
+    s.notes.emplace_back(buf);
   }
   return n;
 }
@@ -200,10 +303,11 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
     throwInputError(path, table.rows.front().first,
                     "expected 't,dx,dy,dtheta', 't,x,y,theta' or 't,v,omega'");
   std::vector<OdoRow> rows;
+  const double t_scale = timeScale(table, 0, req.time_unit, path, s);
   for (const auto& [line, f] : table.rows) {
     if (f.size() != width)
       throwInputError(path, line, "expected " + std::to_string(width) + " fields");
-    const auto t = rowTime(f[0], path, line, "odometry", s);
+    const auto t = rowTime(f[0], path, line, "odometry", s, t_scale);
     if (!t) continue;
     OdoRow r{*t, Eigen::Vector3d::Zero()};
     for (size_t i = 1; i < width; ++i)
@@ -238,11 +342,13 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
   for (const auto& o : odometryIncrements(rows, kind)) events.emplace_back(o);
 }
 
-void readImu(const std::string& path, std::vector<loc::Event>& events, ImportSummary& s) {
+void readImu(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {
+  const std::string& path = req.imu;
   const Table table = readTable(path);
+  const double t_scale = timeScale(table, 0, req.time_unit, path, s);
   for (const auto& [line, f] : table.rows) {
     if (f.size() != 7) throwInputError(path, line, "expected 't,gx,gy,gz,ax,ay,az'");
-    const auto t = rowTime(f[0], path, line, "imu", s);
+    const auto t = rowTime(f[0], path, line, "imu", s, t_scale);
     if (!t) continue;
     loc::ImuSample m;
     m.t = *t;
@@ -256,9 +362,19 @@ void readImu(const std::string& path, std::vector<loc::Event>& events, ImportSum
   }
 }
 
+// Throws, naming the line, when a reference pose is not finite or its time cannot be used.
+void checkReferenceRow(const TimedPose& p, const std::string& path, int line) {
+  if (!p.pose.allFinite()) throwInputError(path, line, "non-finite value");
+  if (const char* problem = timestampProblem(p.t))
+    throwInputError(path, line,
+                    std::string("unusable time (") + problem + "; --time-unit sets the unit)");
+}
+
 // TUM, t x y theta, or t x y (no heading).
-std::vector<TimedPose> readReference(const std::string& path, bool* heading) {
+std::vector<TimedPose> readReference(const CsvImportRequest& req, ImportSummary& s, bool* heading) {
+  const std::string& path = req.reference;
   const Table table = readTable(path);
+  const double t_scale = timeScale(table, 0, req.time_unit, path, s);
   const size_t width = table.rows.front().second.size();
   *heading = width != 3;
   if (width == 8 || width == 4) {
@@ -268,7 +384,7 @@ std::vector<TimedPose> readReference(const std::string& path, bool* heading) {
       if (f.size() != width)
         throwInputError(path, line, "expected " + std::to_string(width) + " fields");
       TimedPose p;
-      p.t = parseNumber(f[0], path, line, "t");
+      p.t = parseNumber(f[0], path, line, "t") * t_scale;
       double yaw = 0.0;
       if (width == 4) {
         yaw = parseNumber(f[3], path, line, "theta");
@@ -280,8 +396,7 @@ std::vector<TimedPose> readReference(const std::string& path, bool* heading) {
         yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
       }
       p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"), yaw;
-      if (!p.pose.allFinite() || timestampProblem(p.t))
-        throwInputError(path, line, "non-finite value or unusable time");
+      checkReferenceRow(p, path, line);
       if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
       out.push_back(p);
     }
@@ -295,10 +410,9 @@ std::vector<TimedPose> readReference(const std::string& path, bool* heading) {
   for (const auto& [line, f] : table.rows) {
     if (f.size() != 3) throwInputError(path, line, "expected 't,x,y'");
     TimedPose p;
-    p.t = parseNumber(f[0], path, line, "t");
+    p.t = parseNumber(f[0], path, line, "t") * t_scale;
     p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"), 0.0;
-    if (!p.pose.allFinite() || timestampProblem(p.t))
-      throwInputError(path, line, "non-finite value or unusable time");
+    checkReferenceRow(p, path, line);
     if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
     out.push_back(p);
   }
@@ -310,9 +424,10 @@ long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, Imp
   const Table table = readTable(path);
   std::vector<loc::LaserScan> scans;
   float longest = 0.0f;
+  const double t_scale = timeScale(table, 0, req.time_unit, path, s);
   for (const auto& [line, f] : table.rows) {
     if (f.size() < 4) throwInputError(path, line, "expected 't,angle_min,angle_increment,r0,...'");
-    const auto t = rowTime(f[0], path, line, "scan", s);
+    const auto t = rowTime(f[0], path, line, "scan", s, t_scale);
     if (!t) continue;
     loc::LaserScan scan;
     scan.t = *t;
@@ -350,6 +465,14 @@ long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, Imp
 
 }  // namespace
 
+double secondsPerTimeUnit(const std::string& unit) {
+  if (unit == "s") return 1.0;
+  if (unit == "ms") return 1e-3;
+  if (unit == "us") return 1e-6;
+  if (unit == "ns") return 1e-9;
+  throw InputError("import csv: --time-unit must be auto, s, ms, us or ns, got '" + unit + "'");
+}
+
 ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir) {
   if (req.ranges.empty()) throw InputError("import csv: --ranges is required");
   if (req.anchors.empty()) throw InputError("import csv: --anchors is required");
@@ -358,10 +481,19 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   const auto anchors = loadAnchorsCsv(req.anchors);
   std::vector<TimedPose> reference;
   bool heading = true;
-  if (!req.reference.empty()) reference = readReference(req.reference, &heading);
-  s.ranges = readRanges(req, events, s);
+  if (!req.reference.empty()) reference = readReference(req, s, &heading);
+  s.ranges = readRanges(req, anchors, events, s);
+  if (s.ranges == 0) {
+    std::string why;
+    for (const auto& [reason, count] : s.skipped)
+      if (reason.rfind("range_", 0) == 0)
+        why += (why.empty() ? "" : ", ") + reason + " " + std::to_string(count);
+    throwInputError(req.ranges, 0,
+                    "no usable range" + (why.empty() ? std::string() : " (skipped: " + why + ")") +
+                        "; --time-unit and --range-unit set the units");
+  }
   if (!req.odometry.empty()) readOdometry(req, reference, events, s);
-  if (!req.imu.empty()) readImu(req.imu, events, s);
+  if (!req.imu.empty()) readImu(req, events, s);
   if (!req.scans.empty()) s.scans = readScans(req, events, s);
   loc::sortByTime(events);
   std::set<int> unknown;

@@ -88,7 +88,7 @@ const char* timestampProblem(double t) {
   if (t < 0.0) return "negative_time";
   // Beyond the year 3000 (a negative stamp stored as an unsigned MRPT timestamp reads back as
   // about 1.8e12 s).
-  if (t > 3.3e10) return "absurd_time";
+  if (t > kLatestTimestamp) return "absurd_time";
   return nullptr;
 }
 

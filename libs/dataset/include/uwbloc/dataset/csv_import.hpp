@@ -39,7 +39,19 @@ struct CsvImportRequest {
   double scan_height = 0.0;                             ///< [m]
   std::optional<double> scan_max_range;  ///< default: the longest range in the file [m]
   std::string name;                      ///< dataset name (default: the output folder's)
+  /// The unit of every file's time column: s, ms, us or ns; auto: seconds, unless a file's
+  /// median stamp would then fall after the year 3000, where the first of ms, us and ns that
+  /// brings it before is taken (the epoch in milliseconds that device logs often carry), loudly.
+  std::string time_unit = "auto";
+  /// The unit of the ranges: m, cm or mm; auto: metres, unless their median is beyond what the
+  /// anchors allow (over 10 times the anchors' largest spacing and over 100 m), where the one of
+  /// cm and mm that puts it between a tenth of and 3 times that spacing is taken, loudly (an
+  /// error when neither or both do).
+  std::string range_unit = "auto";
 };
+
+/// Seconds per unit of `unit` (s, ms, us, ns); throws InputError for another name.
+double secondsPerTimeUnit(const std::string& unit);
 
 /// Writes rawlog, anchors.csv, ground_truth.tum, range_features.csv (when the ranges carry
 /// powers) and dataset.ini into `out_dir`.

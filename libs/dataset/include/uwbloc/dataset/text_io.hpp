@@ -23,8 +23,11 @@ double parseNumber(const std::string& text, const std::string& file, int line,
 /// Parses an integer id (|id| < 1e9), or throws InputError naming file, line and field.
 int parseId(const std::string& text, const std::string& file, int line, const std::string& field);
 
+/// The latest usable timestamp [s]: about the year 3000.
+inline constexpr double kLatestTimestamp = 3.3e10;
+
 /// Why a timestamp cannot be used: "non_finite_time", "negative_time" or "absurd_time" (after the
-/// year 3000); nullptr when it can.
+/// year 3000, kLatestTimestamp); nullptr when it can.
 /// Every reader rejects and counts such rows instead of sorting them to the start of the stream.
 const char* timestampProblem(double t);
 
