@@ -59,6 +59,21 @@ data::CsvImportRequest requestFrom(const std::string& args) {
   return r;
 }
 
+// Three anchors 8 m apart as an anchors CSV, and a tag driving 1 m along x among them at 1 m
+// height: 100 epochs 0.1 s apart from t0, each a range to every anchor. Calls range(t, anchor,
+// distance) for each range and pose(t, x, y) for each epoch.
+constexpr const char* kThreeAnchors = "1,0,0,1\n2,8,0,1\n3,0,8,1\n";
+template <class Range, class Pose>
+void driveAmongThreeAnchors(double t0, Range&& range, Pose&& pose) {
+  const Eigen::Vector3d anchors[] = {{0, 0, 1}, {8, 0, 1}, {0, 8, 1}};
+  for (int k = 0; k < 100; ++k) {
+    const double t = t0 + 0.1 * k;
+    const Eigen::Vector3d p(2.0 + 0.01 * k, 3.0, 1.0);
+    for (int a = 1; a <= 3; ++a) range(t, a, (anchors[a - 1] - p).norm());
+    pose(t, p.x(), p.y());
+  }
+}
+
 }  // namespace
 
 TEST(CsvImport, ARoundTripScoresIdentically) {
@@ -144,23 +159,19 @@ TEST(CsvImport, ReadsEveryOdometryKind) {
 
 TEST(CsvImport, AReferenceWithoutHeadingIsNotScoredForHeading) {
   const auto dir = test::scratchDir();
-  test::writeText(dir / "a.csv", "1,0,0,1\n2,8,0,1\n3,0,8,1\n");
+  test::writeText(dir / "a.csv", kThreeAnchors);
   std::string ranges = "t,anchor_id,range,tag_id,rx_power,fp_power\n", ref;
-  for (int k = 0; k < 100; ++k) {
-    const double t = 5.0 + 0.1 * k;
-    const Eigen::Vector3d p(2.0 + 0.01 * k, 3.0, 1.0);
-    for (int a = 1; a <= 3; ++a) {
-      const Eigen::Vector3d anchor = a == 1   ? Eigen::Vector3d(0, 0, 1)
-                                     : a == 2 ? Eigen::Vector3d(8, 0, 1)
-                                              : Eigen::Vector3d(0, 8, 1);
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f,0,-80,-82\n", t, a, (anchor - p).norm());
-      ranges += buf;
-    }
-    char buf[120];
-    std::snprintf(buf, sizeof buf, "%.2f %.4f %.4f\n", t, p.x(), p.y());
-    ref += buf;
-  }
+  char buf[160];
+  driveAmongThreeAnchors(
+      5.0,
+      [&](double t, int a, double r) {
+        std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f,0,-80,-82\n", t, a, r);
+        ranges += buf;
+      },
+      [&](double t, double x, double y) {
+        std::snprintf(buf, sizeof buf, "%.2f %.4f %.4f\n", t, x, y);
+        ref += buf;
+      });
   data::CsvImportRequest r;
   r.ranges = test::writeText(dir / "r.csv", ranges);
   r.anchors = (dir / "a.csv").string();
@@ -184,27 +195,22 @@ TEST(CsvImport, AReferenceWithoutHeadingIsNotScoredForHeading) {
 // (epochs a second apart read as 1000 s) are warned about.
 TEST(CsvImport, TimeAndRangeUnitsFromTheData) {
   const auto dir = test::scratchDir();
-  const std::string anchors = test::writeText(dir / "a.csv", "1,0,0,1\n2,8,0,1\n3,0,8,1\n");
+  const std::string anchors = test::writeText(dir / "a.csv", kThreeAnchors);
   // The ranges with stamps t0 + 0.1 k s and the reference, in the given units.
   const auto write = [&](const std::string& name, double t0, double per_second, double per_metre,
                          double ref_per_second) {
     std::string ranges = "t,anchor_id,range\n", ref;
-    for (int k = 0; k < 100; ++k) {
-      const double t = t0 + 0.1 * k;
-      const Eigen::Vector3d p(2.0 + 0.01 * k, 3.0, 1.0);
-      for (int a = 1; a <= 3; ++a) {
-        const Eigen::Vector3d anchor = a == 1   ? Eigen::Vector3d(0, 0, 1)
-                                       : a == 2 ? Eigen::Vector3d(8, 0, 1)
-                                                : Eigen::Vector3d(0, 8, 1);
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "%.6f,%d,%.9g\n", t * per_second, a,
-                      (anchor - p).norm() * per_metre);
-        ranges += buf;
-      }
-      char buf[120];
-      std::snprintf(buf, sizeof buf, "%.6f %.4f %.4f\n", t * ref_per_second, p.x(), p.y());
-      ref += buf;
-    }
+    char buf[160];
+    driveAmongThreeAnchors(
+        t0,
+        [&](double t, int a, double r) {
+          std::snprintf(buf, sizeof buf, "%.6f,%d,%.9g\n", t * per_second, a, r * per_metre);
+          ranges += buf;
+        },
+        [&](double t, double x, double y) {
+          std::snprintf(buf, sizeof buf, "%.6f %.4f %.4f\n", t * ref_per_second, x, y);
+          ref += buf;
+        });
     data::CsvImportRequest r;
     r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
     r.anchors = anchors;

@@ -74,7 +74,7 @@ bool FederatedEkfT<N>::updateWithRange(const AcceptedRange& r) {
       const auto fold =
           rangeFold(kalman::cubaturePoints<N>(x_, p_), x_, r, std::sqrt(rv(0)), this->sideSigmas());
       if (fold) {
-        ++this->stats_.events[fold->side_known ? "linearised_at_fold" : "blind_across_fold"];
+        ++this->stats_.events[fold->event()];
         if (!fold->side_known) Base::blindAlong(hj, fold->axis);
       }
     }

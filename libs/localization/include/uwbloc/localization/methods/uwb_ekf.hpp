@@ -126,6 +126,8 @@ struct RangeFold {
   /// The range at the mean exceeds the least range along `axis` by more than the noise: the
   /// mean's side of the fold is known, and the linearisation at the mean holds.
   bool side_known = false;
+  /// The event that counts the fold's update: linearised_at_fold or blind_across_fold.
+  const char* event() const { return side_known ? "linearised_at_fold" : "blind_across_fold"; }
 };
 
 /// The direction in the plane along which the range of `r` folds over the symmetric points
@@ -246,7 +248,7 @@ class UwbEkfT : public UwbEstimator {
   /// fold (event blind_across_fold), or at the mean when the fold's side is known (event
   /// linearised_at_fold).
   void foldCorrect(double y, double r_var, const RangeFold& fold) {
-    ++stats_.events[fold.side_known ? "linearised_at_fold" : "blind_across_fold"];
+    ++stats_.events[fold.event()];
     linearCorrect(y, r_var, fold.side_known ? nullptr : &fold.axis);
   }
   /// rangeFold's `side_sigmas`: the gate's, sqrt(gate) range stds.
