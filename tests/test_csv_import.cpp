@@ -263,6 +263,45 @@ TEST(CsvImport, TimeAndRangeUnitsFromTheData) {
   EXPECT_TRUE(noted(data::importCsv(from_zero, (dir / "z").string()), "--time-unit ms"));
 }
 
+// A spreadsheet's export: a UTF-8 byte-order mark, semicolons, decimal commas, CRLF line ends
+// and a header ending in a separator. It reads as the plain file does.
+TEST(CsvImport, ASpreadsheetsSemicolonsAndDecimalCommas) {
+  const auto dir = test::scratchDir();
+  std::string plain = "t,anchor_id,range\n", sheet = "\xEF\xBB\xBFt;anchor_id;range;\r\n";
+  char buf[160];
+  driveAmongThreeAnchors(
+      5.0,
+      [&](double t, int a, double r) {
+        std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", t, a, r);
+        plain += buf;
+        std::string row = buf;
+        for (char& c : row) c = c == ',' ? ';' : c == '.' ? ',' : c;
+        row.insert(row.size() - 1, ";\r");
+        sheet += row;
+      },
+      [](double, double, double) {});
+  data::CsvImportRequest r;
+  r.anchors =
+      test::writeText(dir / "a.csv", "\xEF\xBB\xBFid;x;y;z\r\n1;0;0;1\r\n2;8;0;1\r\n3;0;8,0;1\r\n");
+  r.tag_height = 1.0;
+  r.ranges = test::writeText(dir / "plain.csv", plain);
+  const auto a = data::loadDataset(data::importCsv(r, (dir / "plain").string()).manifest, "");
+  r.ranges = test::writeText(dir / "sheet.csv", sheet);
+  const auto s = data::importCsv(r, (dir / "sheet").string());
+  EXPECT_EQ(s.ranges, 300);
+  const auto b = data::loadDataset(s.manifest, "");
+  ASSERT_EQ(a.events.size(), b.events.size());
+  for (size_t i = 0; i < a.events.size(); ++i) {
+    const auto& ra = std::get<uwb::Range>(a.events[i]);
+    const auto& rb = std::get<uwb::Range>(b.events[i]);
+    EXPECT_EQ(ra.t, rb.t);
+    EXPECT_EQ(ra.anchor_id, rb.anchor_id);
+    EXPECT_EQ(ra.range, rb.range);
+  }
+  ASSERT_EQ(b.anchors.size(), 3u);
+  EXPECT_EQ(b.anchors[2].position, Eigen::Vector3d(0, 8, 1));
+}
+
 // A scan that does not start at -aperture/2 keeps its rays' directions: the sensor turns by the
 // scan's centre angle.
 TEST(CsvImport, AnAsymmetricScanKeepsItsRayDirections) {

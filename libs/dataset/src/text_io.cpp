@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -41,19 +42,30 @@ void forEachRow(const std::string& path,
   while (std::getline(in, line)) {
     ++number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    // A spreadsheet's "CSV UTF-8" starts with a byte-order mark, which would stick to the first
+    // header name.
+    if (number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
     const auto first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#' || line[first] == '%') continue;
     fields.clear();
-    if (line.find(',') != std::string::npos) {
-      // Comma-separated: keep empty fields, trim blanks around each.
+    // Semicolon-separated (a spreadsheet's export where the comma is the decimal mark), else
+    // comma-separated.
+    const char separator = line.find(';') != std::string::npos ? ';' : ',';
+    if (line.find(separator) != std::string::npos) {
+      // Keep empty fields, trim blanks around each.
       std::string field;
       std::istringstream cells(line);
-      while (std::getline(cells, field, ',')) {
+      while (std::getline(cells, field, separator)) {
         const auto b = field.find_first_not_of(" \t");
         const auto e = field.find_last_not_of(" \t");
         fields.push_back(b == std::string::npos ? "" : field.substr(b, e - b + 1));
+        // One decimal comma and no point: "1,25" is 1.25.
+        std::string& f = fields.back();
+        if (separator == ';' && std::count(f.begin(), f.end(), ',') == 1 &&
+            f.find('.') == std::string::npos)
+          f[f.find(',')] = '.';
       }
-      if (line.back() == ',') fields.emplace_back();
+      if (line.back() == separator) fields.emplace_back();
     } else {
       std::istringstream cells(line);
       std::string field;

@@ -12,7 +12,10 @@ namespace uwbloc::data {
 void requireRegularFile(const std::string& path);
 
 /// Calls `on_line(line_number, fields)` for each non-empty, non-comment ('#' or '%') line, with
-/// fields split on commas and/or whitespace. Throws InputError if the file cannot be opened.
+/// fields split on commas and/or whitespace, or on semicolons where the line has one (then a
+/// field with one comma and no point reads it as the decimal mark: "1,25" is "1.25"). A UTF-8
+/// byte-order mark at the start of the file is dropped. Throws InputError if the file cannot be
+/// opened.
 void forEachRow(const std::string& path,
                 const std::function<void(int, const std::vector<std::string>&)>& on_line);
 
