@@ -262,7 +262,7 @@ int BenchmarkCommand::run() {
   o.datasets = splitList(datasets_);
   eval::checkBenchmarkMethods(o.methods);  // before the imports, which take minutes
   // The tables go here even when no dataset needed importing (the demo alone).
-  std::filesystem::create_directories(out_);
+  data::ensureDirectory(out_);
   const auto log = [](const std::string& line) { std::cerr << line << "\n"; };
   const auto cells = eval::runBenchmark(eval::prepareBenchmarkDatasets(o, log), o, log);
   const std::string md = eval::formatBenchmarkMarkdown(cells, seeds_);

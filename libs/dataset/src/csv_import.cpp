@@ -11,6 +11,7 @@
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 
 namespace fs = std::filesystem;
 
@@ -57,11 +58,6 @@ Table readTable(const std::string& path) {
   return t;
 }
 
-double medianOf(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 // The finite numbers in column `col` of the rows (a field that does not parse is left to the
 // reader, which names its line).
 std::vector<double> columnValues(const Table& table, size_t col) {
@@ -69,9 +65,9 @@ std::vector<double> columnValues(const Table& table, size_t col) {
   for (const auto& row : table.rows) {
     if (col >= row.second.size()) continue;
     const std::string& text = row.second[col];
-    char* end = nullptr;
-    const double x = std::strtod(text.c_str(), &end);
-    if (!text.empty() && end == text.c_str() + text.size() && std::isfinite(x)) v.push_back(x);
+    if (!isNumber(text)) continue;
+    const double x = std::strtod(text.c_str(), nullptr);
+    if (std::isfinite(x)) v.push_back(x);
   }
   return v;
 }
@@ -82,7 +78,7 @@ double timeScale(const Table& table, size_t col, const std::string& unit, const 
   if (unit != "auto") return secondsPerTimeUnit(unit);
   const auto times = columnValues(table, col);
   if (times.empty()) return 1.0;
-  const double median = medianOf(times);
+  const double median = loc::medianOf(times);
   if (!(median > kLatestTimestamp)) return 1.0;
   static const std::pair<const char*, double> kUnits[] = {
       {"milliseconds", 1e-3}, {"microseconds", 1e-6}, {"nanoseconds", 1e-9}};
@@ -112,7 +108,7 @@ double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anch
   for (size_t i = 0; i < anchors.size(); ++i)
     for (size_t j = i + 1; j < anchors.size(); ++j)
       spacing = std::max(spacing, (anchors[i].position - anchors[j].position).norm());
-  const double median = medianOf(values);
+  const double median = loc::medianOf(values);
   if (!(median > std::max(10.0 * spacing, 100.0))) return 1.0;
   // The readings that put the tag among the anchors: a median range between a tenth of and 3
   // times their largest spacing.
@@ -221,12 +217,13 @@ long readRanges(const CsvImportRequest& req, const std::vector<uwb::Anchor>& anc
   stamps.erase(std::unique(stamps.begin(), stamps.end()), stamps.end());
   std::vector<double> gaps;
   for (size_t i = 1; i < stamps.size(); ++i) gaps.push_back(stamps[i] - stamps[i - 1]);
-  if (req.time_unit == "auto" && t_scale == 1.0 && gaps.size() >= 10 && medianOf(gaps) > 30.0) {
+  const double gap = gaps.size() >= 10 ? loc::medianOf(std::move(gaps)) : 0.0;
+  if (req.time_unit == "auto" && t_scale == 1.0 && gap > 30.0) {
     char buf[320];
     std::snprintf(buf, sizeof buf,
                   "WARNING: %s: the ranges' epochs are a median %.4g s apart: if the times are "
                   "in milliseconds, give --time-unit ms",
-                  path.c_str(), medianOf(gaps));
+                  path.c_str(), gap);
     s.notes.emplace_back(buf);
   }
   return n;
