@@ -12,6 +12,7 @@
 #include "uwbloc/dataset/librsf_import.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/runner.hpp"
+#include "uwbloc/uwb/range_model.hpp"
 
 using namespace uwbloc;
 
@@ -261,6 +262,54 @@ TEST(CsvImport, TimeAndRangeUnitsFromTheData) {
   EXPECT_EQ(data::importCsv(far, (dir / "f").string()).ranges, 300);
   const auto from_zero = write("zero", 0.0, 1e4, 1.0, 1e4);  // 0.1 s read as 1000 s
   EXPECT_TRUE(noted(data::importCsv(from_zero, (dir / "z").string()), "--time-unit ms"));
+}
+
+// A tag away from the robot's origin, imported without saying where: the reference shows it, and
+// a warning names the place and the --tag that sets it (ranges with a bias per anchor and one in
+// eight 1.5 m long: neither moves the fit). Given there, no warning; with no reference, a note
+// says what was assumed.
+TEST(CsvImport, WarnsWhereTheRangesPlaceTheTagElsewhere) {
+  const auto dir = test::scratchDir();
+  const std::string anchors =
+      test::writeText(dir / "a.csv", "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-4,5,2.6\n");
+  const Eigen::Vector3d at[] = {{-4, -4, 0.4}, {5, -4, 2.2}, {5, 5, 1.5}, {-4, 5, 2.6}};
+  const Eigen::Vector3d tag(0.25, -0.15, 0.8);
+  std::string ranges = "t,anchor_id,range\n", ref;
+  char buf[160];
+  for (int k = 0; k < 300; ++k) {  // a 2.5 m circle, heading along it, 0.1 s apart
+    const double t = 10.0 + 0.1 * k, a = 0.02 * k;
+    const Eigen::Vector3d pose(2.5 * std::cos(a), 2.5 * std::sin(a), a + M_PI / 2);
+    for (int i = 0; i < 4; ++i) {
+      const double nlos = (k + i) % 8 == 0 ? 1.5 : 0.0;
+      const double r = (uwb::tagPosition(pose, tag) - at[i]).norm() + 0.05 * i + nlos;
+      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", t, i + 1, r);
+      ranges += buf;
+    }
+    std::snprintf(buf, sizeof buf, "%.2f,%.6f,%.6f,%.6f\n", t, pose.x(), pose.y(), pose.z());
+    ref += buf;
+  }
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / "r.csv", ranges);
+  r.anchors = anchors;
+  r.reference = test::writeText(dir / "ref.csv", "t,x,y,theta\n" + ref);
+  const auto warnings = [&](const data::CsvImportRequest& req) {
+    std::string w;
+    for (const auto& n : data::importCsv(req, (dir / "out").string()).notes)
+      if (n.find("WARNING") != std::string::npos) w += n + "\n";
+    return w;
+  };
+  const std::string none_given = warnings(r);
+  EXPECT_NE(none_given.find("r.csv"), std::string::npos) << none_given;
+  EXPECT_NE(none_given.find("--tag 0,0.25,-0.15,0.80"), std::string::npos) << none_given;
+  r.tag_height = 0.8;  // the height alone: the lever arm still wrong
+  EXPECT_NE(warnings(r).find("--tag 0,0.25,-0.15,0.80"), std::string::npos);
+  r.tags[0] = tag;
+  EXPECT_EQ(warnings(r), "");
+  r.tags.clear(), r.tag_height.reset(), r.reference.clear();
+  bool noted = false;
+  for (const auto& n : data::importCsv(r, (dir / "out").string()).notes)
+    noted |= n.find("No tag position given") != std::string::npos;
+  EXPECT_TRUE(noted);
 }
 
 // A spreadsheet's export: a UTF-8 byte-order mark, semicolons, decimal commas, CRLF line ends

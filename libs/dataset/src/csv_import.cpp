@@ -10,6 +10,7 @@
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/localization/range_noise.hpp"
 
@@ -416,6 +417,55 @@ std::vector<TimedPose> readReference(const CsvImportRequest& req, ImportSummary&
   return out;
 }
 
+// Each tag's place on the robot checked against the reference (fitTagOnRobot, tag_fit.hpp):
+// where the ranges agree clearly better with another place (more than 0.1 m away, a median
+// deviation under 0.8 times), a warning names it and the --tag that sets it. The place is not
+// taken from the reference: a tag's mount is the user's to state, and an estimator configured
+// from the ground truth it is scored against would flatter itself. Without a reference the
+// tags' place cannot be read from the data: a note says what was assumed when nothing was given.
+void checkTagPlaces(const CsvImportRequest& req, const std::vector<loc::Event>& events,
+                    const std::vector<uwb::Anchor>& anchors,
+                    const std::vector<TimedPose>& reference, bool heading, ImportSummary& s) {
+  const bool given = !req.tags.empty() || req.tag_height;
+  if (reference.empty()) {
+    if (!given)
+      s.notes.emplace_back(
+          "No tag position given: tag 0 taken at the robot's origin at height 0 (--tag "
+          "ID,X,Y,Z or --tag-height H sets it; a wrong height or lever arm reads as range error)");
+    return;
+  }
+  std::map<int, std::pair<Eigen::Vector3d, std::vector<TagFitSample>>> by_tag;
+  for (const auto& e : events) {
+    const auto* r = std::get_if<uwb::Range>(&e);
+    if (!r || !r->on_robot) continue;
+    const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
+    const auto p = interpolateGroundTruth(reference, r->t, 1.0);
+    if (!a || !p) continue;
+    auto& [tag, samples] = by_tag[r->tag_id];
+    tag = r->tag_on_robot;
+    samples.push_back({*p, a->position, r->range, r->anchor_id});
+  }
+  for (const auto& [id, entry] : by_tag) {
+    const auto& [tag, samples] = entry;
+    if (samples.size() < 50) continue;
+    const double at_given = loc::medianOf(rangeDeviations(samples, tag));
+    const TagFit fit = fitTagOnRobot(samples, tag, heading, true);
+    if ((fit.tag - tag).norm() <= 0.1 || fit.deviation >= 0.8 * at_given) continue;
+    char buf[600];
+    std::snprintf(buf, sizeof buf,
+                  "WARNING: %s: against the reference, tag %d's ranges agree best with the tag "
+                  "at (%.2f, %.2f, %.2f) m on the robot (median deviation from each anchor's "
+                  "median error %.3f m), not at (%.2f, %.2f, %.2f) m %s (%.3f m%s): if that is "
+                  "where it sits, give --tag %d,%.2f,%.2f,%.2f",
+                  req.ranges.c_str(), id, fit.tag.x(), fit.tag.y(), fit.tag.z(), fit.deviation,
+                  tag.x(), tag.y(), tag.z(), given ? "as given" : "(none given: the origin)",
+                  at_given,
+                  heading ? "" : "; the reference has no heading: the lever arm is not read", id,
+                  fit.tag.x(), fit.tag.y(), fit.tag.z());
+    s.notes.emplace_back(buf);
+  }
+}
+
 long readScans(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {
   const std::string& path = req.scans;
   const Table table = readTable(path);
@@ -493,6 +543,7 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   if (!req.imu.empty()) readImu(req, events, s);
   if (!req.scans.empty()) s.scans = readScans(req, events, s);
   loc::sortByTime(events);
+  checkTagPlaces(req, events, anchors, reference, heading, s);
   std::set<int> unknown;
   for (const auto& e : events)
     if (const auto* r = std::get_if<uwb::Range>(&e); r && !uwb::findAnchor(anchors, r->anchor_id))

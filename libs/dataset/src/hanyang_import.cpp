@@ -13,7 +13,9 @@
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
 namespace fs = std::filesystem;
@@ -126,50 +128,10 @@ std::vector<TimedPose> readReference(const std::string& trajectory,
   return gt;
 }
 
-struct LabelSample {
-  Eigen::Vector3d pose;  // reference
-  Eigen::Vector3d anchor;
-  double range;
-  int anchor_id;
-  size_t event;
-};
-
-// The sample's distance from the tag, at `lever` on the robot and at the tag height, to its
-// anchor.
-double trueRange(const LabelSample& s, const Eigen::Vector2d& lever, double tag_height) {
-  return (uwb::tagPosition(s.pose, Eigen::Vector3d(lever.x(), lever.y(), tag_height)) - s.anchor)
-      .norm();
-}
-
-// |error - the anchor's median error| of every sample, with the tag at `lever` in the body
-// frame; the anchor medians (constant biases: antenna delays) into `bias`.
-std::vector<double> deviations(const std::vector<LabelSample>& s, const Eigen::Vector2d& lever,
-                               double tag_height, std::map<int, double>* bias = nullptr) {
-  std::map<int, std::vector<double>> by_anchor;
-  std::vector<double> err(s.size());
-  for (size_t i = 0; i < s.size(); ++i) {
-    err[i] = s[i].range - trueRange(s[i], lever, tag_height);
-    by_anchor[s[i].anchor_id].push_back(err[i]);
-  }
-  std::map<int, double> med;
-  for (auto& [id, e] : by_anchor) {
-    std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
-    med[id] = e[e.size() / 2];
-  }
-  for (size_t i = 0; i < s.size(); ++i) err[i] = std::abs(err[i] - med[s[i].anchor_id]);
-  if (bias) *bias = med;
-  return err;
-}
-
-double medianOf(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 // Each range's true distance and label against the reference. The reference is the robot's
-// pose, not the tag's: the tag's place on the robot (lever arm) is estimated from the data, as
-// the offset within 1 m (5 cm grid, every 5th range) that makes the ranges agree best (least
-// median deviation from each anchor's median error). The true distance runs from that tag
+// pose, not the tag's: the tag's place on the robot (lever arm) is estimated from the data
+// (fitTagOnRobot, tag_fit.hpp: within 1 m on a 5 cm grid, the least median deviation from each
+// anchor's median error) at the given height. The true distance runs from that tag
 // position, at the tag height, to the anchor. A range is NLOS when its error departs from its
 // anchor's median error (a constant bias is no NLOS) by more than max(0.3 m, 3 robust std);
 // 0.3 m is three times the DW1000's LOS ranging std (about 0.1 m).
@@ -178,44 +140,38 @@ std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
                                     const std::vector<TimedPose>& gt, double tag_height,
                                     ImportSummary& summary) {
   std::vector<RangeLabel> labels(events.size());
-  std::vector<LabelSample> samples;
+  std::vector<TagFitSample> samples;
+  std::vector<size_t> event_of;
   for (size_t i = 0; i < events.size(); ++i) {
     const auto* r = std::get_if<uwb::Range>(&events[i]);
     if (!r) continue;
     const auto p = interpolateGroundTruth(gt, r->t, 1.0);  // not across a gap over 1 s
     const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
-    if (p && a) samples.push_back({*p, a->position, r->range, r->anchor_id, i});
+    if (p && a) samples.push_back({*p, a->position, r->range, r->anchor_id}), event_of.push_back(i);
   }
   if (samples.size() < 50) return labels;
-  std::vector<LabelSample> sub;
-  for (size_t i = 0; i < samples.size(); i += 5) sub.push_back(samples[i]);
-  Eigen::Vector2d lever = Eigen::Vector2d::Zero();
-  double best = medianOf(deviations(sub, lever, tag_height));
-  const double at_origin = best;
-  for (int ix = -20; ix <= 20; ++ix)
-    for (int iy = -20; iy <= 20; ++iy) {
-      const Eigen::Vector2d l(0.05 * ix, 0.05 * iy);
-      const double m = medianOf(deviations(sub, l, tag_height));
-      if (m < best - 1e-9) best = m, lever = l;
-    }
-  std::map<int, double> bias;
-  const auto dev = deviations(samples, lever, tag_height, &bias);
-  const double threshold = std::max(0.3, 3.0 * 1.4826 * medianOf(dev));
+  const Eigen::Vector3d origin(0.0, 0.0, tag_height);
+  const double at_origin = loc::medianOf(rangeDeviations(samples, origin));
+  const TagFit fit = fitTagOnRobot(samples, origin, true, false);
+  const auto dev = rangeDeviations(samples, fit.tag);
+  const double threshold = std::max(0.3, 3.0 * 1.4826 * loc::medianOf(dev));
   long nlos = 0;
   for (size_t k = 0; k < samples.size(); ++k) {
     const auto& s = samples[k];
-    labels[s.event].true_range = trueRange(s, lever, tag_height);
-    labels[s.event].nlos = dev[k] > threshold;
-    nlos += labels[s.event].nlos;
+    auto& label = labels[event_of[k]];
+    label.true_range = (uwb::tagPosition(s.pose, fit.tag) - s.anchor).norm();
+    label.nlos = dev[k] > threshold;
+    nlos += label.nlos;
   }
   char buf[400];
   std::snprintf(buf, sizeof buf,
                 "range_features.csv: %zu ranges labelled against the reference: tag at (%.2f, "
                 "%.2f) m on the robot (median deviation %.3f m, %.3f m at the origin); %ld "
                 "NLOS (more than %.3f m from their anchor's median error)",
-                samples.size(), lever.x(), lever.y(), best, at_origin, nlos, threshold);
+                samples.size(), fit.tag.x(), fit.tag.y(), fit.deviation, at_origin, nlos,
+                threshold);
   summary.notes.push_back(buf);
-  for (const auto& [id, b] : bias) {
+  for (const auto& [id, b] : fit.bias) {
     std::snprintf(buf, sizeof buf, "  anchor %d: median range error %+.3f m", id, b);
     summary.notes.push_back(buf);
   }

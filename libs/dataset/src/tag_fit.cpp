@@ -1,0 +1,80 @@
+#include "uwbloc/dataset/tag_fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "uwbloc/localization/range_noise.hpp"
+#include "uwbloc/uwb/range_model.hpp"
+
+namespace uwbloc::data {
+
+std::vector<double> rangeDeviations(const std::vector<TagFitSample>& samples,
+                                    const Eigen::Vector3d& tag, std::map<int, double>* bias) {
+  std::map<int, std::vector<double>> by_anchor;
+  std::vector<double> err(samples.size());
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const auto& s = samples[i];
+    err[i] = s.range - (uwb::tagPosition(s.pose, tag) - s.anchor).norm();
+    by_anchor[s.anchor_id].push_back(err[i]);
+  }
+  std::map<int, double> median;
+  for (auto& [id, e] : by_anchor) median[id] = loc::medianOf(std::move(e));
+  for (size_t i = 0; i < samples.size(); ++i)
+    err[i] = std::abs(err[i] - median[samples[i].anchor_id]);
+  if (bias) *bias = std::move(median);
+  return err;
+}
+
+namespace {
+
+double medianDeviation(const std::vector<TagFitSample>& s, const Eigen::Vector3d& tag) {
+  return loc::medianOf(rangeDeviations(s, tag));
+}
+
+// The best of `candidates` (the current one first, kept on a tie).
+void keepBest(const std::vector<TagFitSample>& s, const std::vector<Eigen::Vector3d>& candidates,
+              Eigen::Vector3d& tag, double& best) {
+  for (const auto& c : candidates)
+    if (const double m = medianDeviation(s, c); m < best - 1e-9) best = m, tag = c;
+}
+
+}  // namespace
+
+TagFit fitTagOnRobot(const std::vector<TagFitSample>& samples, const Eigen::Vector3d& start,
+                     bool fit_lever, bool fit_height) {
+  TagFit fit;
+  fit.tag = start;
+  if (samples.size() >= 50) {
+    std::vector<TagFitSample> sub;
+    const size_t step = (samples.size() + 1999) / 2000;
+    for (size_t i = 0; i < samples.size(); i += step) sub.push_back(samples[i]);
+    double z_lo = samples.front().anchor.z(), z_hi = z_lo;
+    for (const auto& s : samples)
+      z_lo = std::min(z_lo, s.anchor.z()), z_hi = std::max(z_hi, s.anchor.z());
+    z_lo -= 1.0, z_hi += 1.0;
+    constexpr double kStep = 0.05;
+    double best = medianDeviation(sub, fit.tag);
+    // Height and lever arm in turn, twice: each moves the other's best little.
+    for (int round = 0; round < 2; ++round) {
+      if (fit_height) {
+        std::vector<Eigen::Vector3d> c;
+        for (int k = 0; z_lo + kStep * k <= z_hi + 1e-9; ++k)
+          c.emplace_back(fit.tag.x(), fit.tag.y(), z_lo + kStep * k);
+        keepBest(sub, c, fit.tag, best);
+      }
+      if (fit_lever) {
+        std::vector<Eigen::Vector3d> c;
+        for (int ix = -20; ix <= 20; ++ix)
+          for (int iy = -20; iy <= 20; ++iy)
+            c.emplace_back(start.x() + kStep * ix, start.y() + kStep * iy, fit.tag.z());
+        keepBest(sub, c, fit.tag, best);
+      }
+      if (!fit_height || !fit_lever) break;
+    }
+  }
+  fit.deviation =
+      samples.empty() ? 0.0 : loc::medianOf(rangeDeviations(samples, fit.tag, &fit.bias));
+  return fit;
+}
+
+}  // namespace uwbloc::data
