@@ -289,11 +289,16 @@ size_t ParticleFilter::drawCount() {
   const size_t least = leastCount();
   if (params_.max_particles <= params_.particles) return least;
   // The weighted set's histogram: the mass of each occupied cell.
+  // A cell index for any value: the conversion of a value beyond long's range (or of a NaN) to
+  // long is undefined, so those share the cells at the clamp.
+  const auto cell = [](double v, double bin) {
+    const double c = std::floor(v / bin);
+    return static_cast<long>(std::isnan(c) ? 0.0 : std::clamp(c, -1e15, 1e15));
+  };
   cells_.clear();
   for (size_t i = 0; i < set_.size(); ++i)
-    cells_.push_back({{static_cast<long>(std::floor(set_.x[i] / params_.kld_bin_xy)),
-                       static_cast<long>(std::floor(set_.y[i] / params_.kld_bin_xy)),
-                       static_cast<long>(std::floor(set_.theta[i] / params_.kld_bin_theta))},
+    cells_.push_back({{cell(set_.x[i], params_.kld_bin_xy), cell(set_.y[i], params_.kld_bin_xy),
+                       cell(set_.theta[i], params_.kld_bin_theta)},
                       w_[i]});
   std::sort(cells_.begin(), cells_.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
