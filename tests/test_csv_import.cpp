@@ -75,6 +75,33 @@ void driveAmongThreeAnchors(double t0, Range&& range, Pose&& pose) {
   }
 }
 
+// Four anchors at different heights as an anchors CSV, and a robot driving a 2.5 m circle among
+// them heading along it, 0.1 s apart for 30 s, with a tag at `tag` on it: the ranges as a CSV
+// (each anchor's a bias of 0.05 m times its index, one range in eight 1.5 m long) and the
+// reference as 't,x,y,theta' rows, moved by `frame` (the reference's frame seen from the
+// anchors' is its inverse).
+constexpr const char* kFourAnchors = "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-4,5,2.6\n";
+std::pair<std::string, std::string> driveACircle(const Eigen::Vector3d& tag,
+                                                 const Eigen::Vector3d& frame) {
+  const Eigen::Vector3d at[] = {{-4, -4, 0.4}, {5, -4, 2.2}, {5, 5, 1.5}, {-4, 5, 2.6}};
+  std::string ranges = "t,anchor_id,range\n", ref = "t,x,y,theta\n";
+  char buf[160];
+  for (int k = 0; k < 300; ++k) {
+    const double t = 10.0 + 0.1 * k, a = 0.02 * k;
+    const Eigen::Vector3d pose(2.5 * std::cos(a), 2.5 * std::sin(a), a + M_PI / 2);
+    for (int i = 0; i < 4; ++i) {
+      const double nlos = (k + i) % 8 == 0 ? 1.5 : 0.0;
+      const double r = (uwb::tagPosition(pose, tag) - at[i]).norm() + 0.05 * i + nlos;
+      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", t, i + 1, r);
+      ranges += buf;
+    }
+    const Eigen::Vector3d moved = composePose(frame, pose);
+    std::snprintf(buf, sizeof buf, "%.2f,%.6f,%.6f,%.6f\n", t, moved.x(), moved.y(), moved.z());
+    ref += buf;
+  }
+  return {ranges, ref};
+}
+
 }  // namespace
 
 TEST(CsvImport, ARoundTripScoresIdentically) {
@@ -270,28 +297,13 @@ TEST(CsvImport, TimeAndRangeUnitsFromTheData) {
 // says what was assumed.
 TEST(CsvImport, WarnsWhereTheRangesPlaceTheTagElsewhere) {
   const auto dir = test::scratchDir();
-  const std::string anchors =
-      test::writeText(dir / "a.csv", "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-4,5,2.6\n");
-  const Eigen::Vector3d at[] = {{-4, -4, 0.4}, {5, -4, 2.2}, {5, 5, 1.5}, {-4, 5, 2.6}};
+  const std::string anchors = test::writeText(dir / "a.csv", kFourAnchors);
   const Eigen::Vector3d tag(0.25, -0.15, 0.8);
-  std::string ranges = "t,anchor_id,range\n", ref;
-  char buf[160];
-  for (int k = 0; k < 300; ++k) {  // a 2.5 m circle, heading along it, 0.1 s apart
-    const double t = 10.0 + 0.1 * k, a = 0.02 * k;
-    const Eigen::Vector3d pose(2.5 * std::cos(a), 2.5 * std::sin(a), a + M_PI / 2);
-    for (int i = 0; i < 4; ++i) {
-      const double nlos = (k + i) % 8 == 0 ? 1.5 : 0.0;
-      const double r = (uwb::tagPosition(pose, tag) - at[i]).norm() + 0.05 * i + nlos;
-      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", t, i + 1, r);
-      ranges += buf;
-    }
-    std::snprintf(buf, sizeof buf, "%.2f,%.6f,%.6f,%.6f\n", t, pose.x(), pose.y(), pose.z());
-    ref += buf;
-  }
+  const auto [ranges, ref] = driveACircle(tag, Eigen::Vector3d::Zero());
   data::CsvImportRequest r;
   r.ranges = test::writeText(dir / "r.csv", ranges);
   r.anchors = anchors;
-  r.reference = test::writeText(dir / "ref.csv", "t,x,y,theta\n" + ref);
+  r.reference = test::writeText(dir / "ref.csv", ref);
   const auto warnings = [&](const data::CsvImportRequest& req) {
     std::string w;
     for (const auto& n : data::importCsv(req, (dir / "out").string()).notes)
@@ -310,6 +322,58 @@ TEST(CsvImport, WarnsWhereTheRangesPlaceTheTagElsewhere) {
   for (const auto& n : data::importCsv(r, (dir / "out").string()).notes)
     noted |= n.find("No tag position given") != std::string::npos;
   EXPECT_TRUE(noted);
+}
+
+// A reference in another frame than the anchors (turned 25 deg and moved 2.5 m): loading says
+// so and gives the manifest line that states it, and with that line the ranges agree and the
+// warning is gone. Anchors with their ids swapped: no rigid motion explains the ranges, and
+// the warning says what to check. The right data: no warning.
+TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrame) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d tag(0.0, 0.0, 0.8), frame(2.0, -1.5, 25.0 * M_PI / 180.0);
+  const auto load = [&](const std::string& name, const std::string& anchors,
+                        const Eigen::Vector3d& moved) {
+    const auto [ranges, ref] = driveACircle(tag, moved);
+    data::CsvImportRequest r;
+    r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
+    r.anchors = test::writeText(dir / (name + "_a.csv"), anchors);
+    r.reference = test::writeText(dir / (name + "_ref.csv"), ref);
+    r.tags[0] = tag;
+    return data::importCsv(r, (dir / name).string()).manifest;
+  };
+  const auto disagreement = [](const data::Dataset& ds) {
+    for (const auto& w : ds.warnings)
+      if (w.find("disagree with the reference") != std::string::npos) return w;
+    return std::string();
+  };
+  const std::string manifest = load("moved", kFourAnchors, frame);
+  const std::string w = disagreement(data::loadDataset(manifest, ""));
+  const std::string key = "gt_origin_in_anchor_frame = ";
+  ASSERT_NE(w.find(key), std::string::npos) << w;
+  double x = 0, y = 0, yaw_deg = 0;
+  std::istringstream(w.substr(w.find(key) + key.size())) >> x >> y >> yaw_deg;
+  const Eigen::Vector3d inverse = relativePose(frame, Eigen::Vector3d::Zero());
+  EXPECT_NEAR(x, inverse.x(), 0.05);
+  EXPECT_NEAR(y, inverse.y(), 0.05);
+  EXPECT_NEAR(yaw_deg, inverse.z() * 180.0 / M_PI, 0.5);
+  // Stated in the manifest, the ranges agree with the reference.
+  std::string text = test::readText(manifest);
+  text.replace(text.find("[anchors]"), 9, "[anchors]\n" + key + w.substr(w.find(key) + key.size()));
+  test::writeText(manifest, text);
+  const auto stated = data::loadDataset(manifest, "");
+  EXPECT_EQ(disagreement(stated), "");
+  EXPECT_LT(eval::evaluateMethod(stated, "uwb-gn", 1, 1).metrics.rmse_2d, 0.1);
+
+  const auto swapped = data::loadDataset(
+      load("swapped", "1,5,5,1.5\n2,5,-4,2.2\n3,-4,-4,0.4\n4,-4,5,2.6\n", Eigen::Vector3d::Zero()),
+      "");
+  const std::string sw = disagreement(swapped);
+  std::printf("[ FRAME    ] %s\n[ FRAME    ] %s\n", w.c_str(), sw.c_str());
+  EXPECT_NE(sw.find("No rigid motion"), std::string::npos) << sw;
+  EXPECT_NE(sw.find("anchors' coordinates and ids"), std::string::npos) << sw;
+  EXPECT_EQ(
+      disagreement(data::loadDataset(load("right", kFourAnchors, Eigen::Vector3d::Zero()), "")),
+      "");
 }
 
 // A spreadsheet's export: a UTF-8 byte-order mark, semicolons, decimal commas, CRLF line ends

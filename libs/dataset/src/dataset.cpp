@@ -5,11 +5,16 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <random>
 #include <tuple>
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/localization/range_noise.hpp"
+#include "uwbloc/uwb/multilateration.hpp"
+#include "uwbloc/uwb/range_model.hpp"
+#include "uwbloc/uwb/rigid_fit.hpp"
 
 namespace uwbloc::data {
 
@@ -148,7 +153,173 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
   if (auto w = referenceBeyondRecordingWarning(ds)) ds.warnings.push_back(*w);
+  if (auto w = rangeReferenceWarning(ds)) ds.warnings.push_back(*w);
   return ds;
+}
+
+namespace {
+
+// A range beside the reference: the tag's position there and the anchor's.
+struct RangeBeside {
+  double t = 0.0;
+  int tag_id = 0, anchor_id = 0;
+  Eigen::Vector3d tag, anchor;
+  double range = 0.0;
+};
+
+// How far the ranges depart from the reference, with the anchors' x, y moved by `move`: the
+// median |error - its link's median error|, over all of them and per link (anchor, tag).
+struct Departure {
+  double overall = 0.0;
+  std::map<std::pair<int, int>, double> per_link;
+};
+Departure departure(const std::vector<RangeBeside>& s, const Pose2& move) {
+  std::map<std::pair<int, int>, std::vector<double>> by_link;
+  std::vector<double> err(s.size());
+  for (size_t i = 0; i < s.size(); ++i) {
+    Eigen::Vector3d a = s[i].anchor;
+    a.head<2>() = transformPoint(move, a.head<2>());
+    err[i] = s[i].range - (a - s[i].tag).norm();
+    by_link[{s[i].anchor_id, s[i].tag_id}].push_back(err[i]);
+  }
+  std::map<std::pair<int, int>, double> median;
+  for (auto& [link, e] : by_link) median[link] = loc::medianOf(e);
+  Departure d;
+  for (auto& [link, e] : by_link) {
+    for (double& v : e) v = std::abs(v - median[link]);
+    d.per_link[link] = loc::medianOf(std::move(e));
+  }
+  for (size_t i = 0; i < s.size(); ++i)
+    err[i] = std::abs(err[i] - median[{s[i].anchor_id, s[i].tag_id}]);
+  d.overall = loc::medianOf(std::move(err));
+  return d;
+}
+
+// The rigid motion T (reference frame -> anchor frame) that takes the reference's tag positions
+// onto the multilateration fixes. A fix with an NLOS range among three can sit metres off with
+// no residual to show it, so first the motion most fixes agree with (within 0.5 m, from pairs of
+// fixes drawn with a fixed seed), Procrustes over those; then, since an anchor's bias moves its
+// fixes, the motion polished on the ranges themselves (least overall departure, a pattern
+// search down to 5 mm and 0.05 deg on at most 2000 ranges). Nothing with fewer than 10 fixes or
+// a quarter of them agreeing.
+std::optional<Pose2> frameFromFixes(std::vector<RangeBeside> s) {
+  std::sort(s.begin(), s.end(), [](const RangeBeside& a, const RangeBeside& b) {
+    return std::tie(a.tag_id, a.t) < std::tie(b.tag_id, b.t);
+  });
+  std::vector<uwb::BodyPoint> pairs;
+  for (size_t i = 0; i < s.size();) {
+    std::map<int, const RangeBeside*> latest;  // per anchor, within 0.1 s of the first
+    size_t j = i;
+    for (; j < s.size() && s[j].tag_id == s[i].tag_id && s[j].t - s[i].t <= 0.1; ++j)
+      latest[s[j].anchor_id] = &s[j];
+    std::vector<uwb::PlanarRange> planar;
+    for (const auto& [id, r] : latest) {
+      const double dz = r->anchor.z() - r->tag.z(), h2 = r->range * r->range - dz * dz;
+      if (h2 > 0.0) planar.push_back({r->anchor.head<2>(), std::sqrt(h2)});
+    }
+    if (planar.size() >= 3)
+      if (const auto fix = uwb::solveGaussNewton(planar); fix.ok())
+        pairs.push_back({s[j - 1].tag.head<2>(), fix.position, Eigen::Matrix2d::Identity()});
+    i = j;
+  }
+  if (pairs.size() < 10) return std::nullopt;
+  const auto inliers = [&](const Pose2& T) {
+    std::vector<uwb::BodyPoint> in;
+    for (const auto& p : pairs)
+      if ((p.measured - transformPoint(T, p.on_body)).norm() <= 0.5) in.push_back(p);
+    return in;
+  };
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<size_t> pick(0, pairs.size() - 1);
+  std::vector<uwb::BodyPoint> best;
+  for (int draw = 0; draw < 200; ++draw) {
+    const size_t a = pick(rng), b = pick(rng);
+    if ((pairs[a].on_body - pairs[b].on_body).norm() < 1.0) continue;  // no heading from them
+    auto in = inliers(uwb::procrustes2d({pairs[a], pairs[b]}, {1.0, 1.0}));
+    if (in.size() > best.size()) best = std::move(in);
+  }
+  if (best.size() < std::max<size_t>(10, pairs.size() / 4)) return std::nullopt;
+  // Polished as the move of the anchors into the reference's frame, T^-1.
+  std::vector<RangeBeside> sub;
+  for (size_t i = 0, step = (s.size() + 1999) / 2000; i < s.size(); i += step) sub.push_back(s[i]);
+  Pose2 move =
+      relativePose(uwb::procrustes2d(best, std::vector<double>(best.size(), 1.0)), Pose2::Zero());
+  double least = departure(sub, move).overall;
+  for (double step = 0.1; step >= 0.005; step /= 2.0) {
+    bool better = true;
+    while (better) {
+      better = false;
+      for (int k = 0; k < 3; ++k)
+        for (double sign : {-1.0, 1.0}) {
+          Pose2 tried = move;
+          tried[k] += sign * (k == 2 ? step * M_PI / 18.0 : step);  // 0.1 m and 1 deg first
+          if (const double d = departure(sub, tried).overall; d < least - 1e-9)
+            least = d, move = tried, better = true;
+        }
+    }
+  }
+  return relativePose(move, Pose2::Zero());
+}
+
+}  // namespace
+
+std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
+  // [m]: ranges this close to the reference need no look; beyond kUnexplained no range noise
+  // explains the departure (a median departure of 1.5 m is a range std of about 2.2 m).
+  constexpr double kLooksRight = 0.25, kUnexplained = 1.5;
+  if (ds.ground_truth.size() < 2) return std::nullopt;
+  std::vector<RangeBeside> s;
+  for (const auto& e : ds.events) {
+    const auto* r = std::get_if<uwb::Range>(&e);
+    if (!r || !r->on_robot || !std::isfinite(r->range)) continue;
+    const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
+    const auto pose = interpolateGroundTruth(ds.ground_truth, r->t, 1.0);
+    if (a && pose)
+      s.push_back({r->t, r->tag_id, r->anchor_id, uwb::tagPosition(*pose, r->tag_on_robot),
+                   a->position, r->range});
+  }
+  if (s.size() < 50) return std::nullopt;
+  const Departure before = departure(s, Pose2::Zero());
+  std::string bad_links;
+  for (const auto& [link, d] : before.per_link)
+    if (d > kUnexplained) {
+      char one[80];
+      std::snprintf(one, sizeof one, "%sanchor %d (tag %d) %.2f m", bad_links.empty() ? "" : ", ",
+                    link.first, link.second, d);
+      bad_links += one;
+    }
+  if (before.overall <= kLooksRight && bad_links.empty()) return std::nullopt;
+  const auto T = before.overall > kLooksRight ? frameFromFixes(s) : std::nullopt;
+  // The anchors in the reference's frame: T^-1 applied to them.
+  const double after = T ? departure(s, relativePose(*T, Pose2::Zero())).overall : HUGE_VAL;
+  const bool moved = T && (T->head<2>().norm() > 0.2 || std::abs(T->z()) > 2.0 * M_PI / 180.0);
+  const bool frame = moved && after < 0.5 * before.overall;
+  if (!frame && before.overall <= kUnexplained && bad_links.empty()) return std::nullopt;
+  char buf[1200];
+  int n = std::snprintf(buf, sizeof buf,
+                        "the ranges disagree with the reference: each departs from its link's "
+                        "median error by a median %.2f m (%zu ranges beside the reference). ",
+                        before.overall, s.size());
+  if (frame) {
+    const Pose2 origin =
+        composePose(ds.manifest.gt_origin_in_anchor_frame.value_or(Pose2::Zero()), *T);
+    std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n),
+                  "The multilateration fixes fit the reference after one rigid motion (%.1f deg, "
+                  "%.2f m), which brings it to %.2f m: the reference is likely in another frame "
+                  "than the anchors. If so, state it in the manifest: [anchors] "
+                  "gt_origin_in_anchor_frame = %.3f %.3f %.2f",
+                  T->z() * 180.0 / M_PI, T->head<2>().norm(), after, origin.x(), origin.y(),
+                  origin.z() * 180.0 / M_PI);
+  } else {
+    std::snprintf(
+        buf + n, sizeof buf - static_cast<size_t>(n),
+        "No rigid motion of the reference explains it%s%s: check %s, the reference's "
+        "frame, and the clocks of the ranges and the reference.",
+        bad_links.empty() ? "" : "; these links depart by a median over 1.5 m: ", bad_links.c_str(),
+        bad_links.empty() ? "the anchors' coordinates and ids"
+                          : "those anchors' coordinates and ids");
+  }
+  return ds.manifest.rawlog + ": " + buf;
 }
 
 std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events) {

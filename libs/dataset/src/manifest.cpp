@@ -299,6 +299,12 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
                     "ground_truth given without ground_truth_format");
 
   m.anchors = readAnchors(ini, path, dir, data_dir);
+  if (const auto tf = ini.get("anchors", "gt_origin_in_anchor_frame")) {
+    std::istringstream in(*tf);  // checked by readAnchors
+    double x = 0, y = 0, yaw_deg = 0;
+    in >> x >> y >> yaw_deg;
+    m.gt_origin_in_anchor_frame = Eigen::Vector3d(x, y, yaw_deg * M_PI / 180.0);
+  }
   if (const auto bias = ini.get("anchors", "bias_csv")) {
     m.bias_csv = resolvePath(*bias, dir, data_dir, path, ini.lineOf("anchors", "bias_csv"));
     m.biases = loadBiasCsv(m.bias_csv);

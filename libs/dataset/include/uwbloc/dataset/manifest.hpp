@@ -93,6 +93,8 @@ struct Manifest {
   std::string map;
   std::string range_features;
   std::vector<uwb::Anchor> anchors;  ///< already in the map/GT frame
+  /// [anchors] gt_origin_in_anchor_frame (x, y, yaw [rad]), already applied to `anchors`
+  std::optional<Eigen::Vector3d> gt_origin_in_anchor_frame;
   std::optional<double> tag_height;
   std::optional<Eigen::Vector2d> lever_arm;
   std::map<int, Eigen::Vector3d> tags;  ///< [tag] tag_<id>: the robot's tags, position on robot
