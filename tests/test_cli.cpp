@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <fstream>
 
+#include "csv_drive.hpp"
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 
@@ -163,6 +164,21 @@ TEST(Cli, BenchmarkCreatesItsFolder) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_TRUE(std::filesystem::exists(out / "benchmark.md"));
   EXPECT_TRUE(std::filesystem::exists(out / "benchmark.json"));
+}
+
+// The import loads what it wrote and prints what loading says: a reference in another frame
+// than the anchors is reported at the first look at one's data, with the manifest line.
+TEST(Cli, ImportPrintsWhatLoadingTheDatasetSays) {
+  const auto dir = uwbloc::test::scratchDir();
+  const auto [ranges, ref] =
+      uwbloc::test::driveACircle({0.0, 0.0, 0.8}, {2.0, -1.5, 25.0 * M_PI / 180.0});
+  const auto r =
+      runCli("import csv --ranges " + writeText(dir / "r.csv", ranges) + " --anchors " +
+             writeText(dir / "a.csv", uwbloc::test::kFourAnchors) + " --reference " +
+             writeText(dir / "ref.csv", ref) + " --tag 0,0,0,0.8 --out " + (dir / "out").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("WARNING: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("gt_origin_in_anchor_frame = "), std::string::npos) << r.output;
 }
 
 TEST(Cli, CollapsedTimestampsAreRefusedUnlessAllowed) {

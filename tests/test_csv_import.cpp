@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "csv_drive.hpp"
 #include "simulated_scenario.hpp"
 #include "test_helpers.hpp"
 #include "uwbloc/dataset/csv_import.hpp"
@@ -73,33 +74,6 @@ void driveAmongThreeAnchors(double t0, Range&& range, Pose&& pose) {
     for (int a = 1; a <= 3; ++a) range(t, a, (anchors[a - 1] - p).norm());
     pose(t, p.x(), p.y());
   }
-}
-
-// Four anchors at different heights as an anchors CSV, and a robot driving a 2.5 m circle among
-// them heading along it, 0.1 s apart for 30 s, with a tag at `tag` on it: the ranges as a CSV
-// (each anchor's a bias of 0.05 m times its index, one range in eight 1.5 m long) and the
-// reference as 't,x,y,theta' rows, moved by `frame` (the reference's frame seen from the
-// anchors' is its inverse).
-constexpr const char* kFourAnchors = "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-4,5,2.6\n";
-std::pair<std::string, std::string> driveACircle(const Eigen::Vector3d& tag,
-                                                 const Eigen::Vector3d& frame) {
-  const Eigen::Vector3d at[] = {{-4, -4, 0.4}, {5, -4, 2.2}, {5, 5, 1.5}, {-4, 5, 2.6}};
-  std::string ranges = "t,anchor_id,range\n", ref = "t,x,y,theta\n";
-  char buf[160];
-  for (int k = 0; k < 300; ++k) {
-    const double t = 10.0 + 0.1 * k, a = 0.02 * k;
-    const Eigen::Vector3d pose(2.5 * std::cos(a), 2.5 * std::sin(a), a + M_PI / 2);
-    for (int i = 0; i < 4; ++i) {
-      const double nlos = (k + i) % 8 == 0 ? 1.5 : 0.0;
-      const double r = (uwb::tagPosition(pose, tag) - at[i]).norm() + 0.05 * i + nlos;
-      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", t, i + 1, r);
-      ranges += buf;
-    }
-    const Eigen::Vector3d moved = composePose(frame, pose);
-    std::snprintf(buf, sizeof buf, "%.2f,%.6f,%.6f,%.6f\n", t, moved.x(), moved.y(), moved.z());
-    ref += buf;
-  }
-  return {ranges, ref};
 }
 
 }  // namespace
@@ -297,9 +271,9 @@ TEST(CsvImport, TimeAndRangeUnitsFromTheData) {
 // says what was assumed.
 TEST(CsvImport, WarnsWhereTheRangesPlaceTheTagElsewhere) {
   const auto dir = test::scratchDir();
-  const std::string anchors = test::writeText(dir / "a.csv", kFourAnchors);
+  const std::string anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
   const Eigen::Vector3d tag(0.25, -0.15, 0.8);
-  const auto [ranges, ref] = driveACircle(tag, Eigen::Vector3d::Zero());
+  const auto [ranges, ref] = test::driveACircle(tag, Eigen::Vector3d::Zero());
   data::CsvImportRequest r;
   r.ranges = test::writeText(dir / "r.csv", ranges);
   r.anchors = anchors;
@@ -333,7 +307,7 @@ TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrame) {
   const Eigen::Vector3d tag(0.0, 0.0, 0.8), frame(2.0, -1.5, 25.0 * M_PI / 180.0);
   const auto load = [&](const std::string& name, const std::string& anchors,
                         const Eigen::Vector3d& moved) {
-    const auto [ranges, ref] = driveACircle(tag, moved);
+    const auto [ranges, ref] = test::driveACircle(tag, moved);
     data::CsvImportRequest r;
     r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
     r.anchors = test::writeText(dir / (name + "_a.csv"), anchors);
@@ -346,7 +320,7 @@ TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrame) {
       if (w.find("disagree with the reference") != std::string::npos) return w;
     return std::string();
   };
-  const std::string manifest = load("moved", kFourAnchors, frame);
+  const std::string manifest = load("moved", test::kFourAnchors, frame);
   const std::string w = disagreement(data::loadDataset(manifest, ""));
   const std::string key = "gt_origin_in_anchor_frame = ";
   ASSERT_NE(w.find(key), std::string::npos) << w;
@@ -371,9 +345,9 @@ TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrame) {
   std::printf("[ FRAME    ] %s\n[ FRAME    ] %s\n", w.c_str(), sw.c_str());
   EXPECT_NE(sw.find("No rigid motion"), std::string::npos) << sw;
   EXPECT_NE(sw.find("anchors' coordinates and ids"), std::string::npos) << sw;
-  EXPECT_EQ(
-      disagreement(data::loadDataset(load("right", kFourAnchors, Eigen::Vector3d::Zero()), "")),
-      "");
+  EXPECT_EQ(disagreement(
+                data::loadDataset(load("right", test::kFourAnchors, Eigen::Vector3d::Zero()), "")),
+            "");
 }
 
 // A spreadsheet's export: a UTF-8 byte-order mark, semicolons, decimal commas, CRLF line ends

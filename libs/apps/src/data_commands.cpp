@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "uwbloc/dataset/carmen_import.hpp"
 #include "uwbloc/dataset/data_dir.hpp"
+#include "uwbloc/dataset/dataset.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/librsf_import.hpp"
 #include "uwbloc/dataset/plaza_import.hpp"
@@ -35,6 +36,9 @@ std::vector<double> splitNumbers(const std::string& text, const std::string& opt
   return out;
 }
 
+// The import's summary, then what loading the written dataset says about it (every command
+// that reads it will say the same: the ranges against the reference, collapsed stamps, ...), so
+// that the first look at one's data shows it.
 void printSummary(const data::ImportSummary& s) {
   std::cout << "Imported " << s.ranges << " ranges from " << s.anchors << " anchors, " << s.scans
             << " scans and " << s.ground_truth_rows << " reference poses\nManifest: " << s.manifest
@@ -42,6 +46,8 @@ void printSummary(const data::ImportSummary& s) {
   for (const auto& note : s.notes) std::cout << note << "\n";
   for (const auto& [reason, count] : s.skipped)
     std::cout << "Skipped " << count << " rows: " << reason << "\n";
+  for (const auto& w : data::loadDataset(s.manifest, "").warnings)
+    std::cout << "WARNING: " << w << "\n";
 }
 
 }  // namespace
