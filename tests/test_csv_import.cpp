@@ -298,6 +298,35 @@ TEST(CsvImport, WarnsWhereTheRangesPlaceTheTagElsewhere) {
   EXPECT_TRUE(noted);
 }
 
+// A reference whose clock lags the ranges' by 0.3 s: loading says so and gives the manifest
+// line; with it the warning is gone.
+TEST(CsvImport, WarnsWhenTheReferencesClockLags) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d tag(0.0, 0.0, 0.8);
+  const auto [ranges, ref] = test::driveACircle(tag, Eigen::Vector3d::Zero(), 0.3);
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / "r.csv", ranges);
+  r.anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
+  r.reference = test::writeText(dir / "ref.csv", ref);
+  r.tags[0] = tag;
+  const std::string manifest = data::importCsv(r, (dir / "out").string()).manifest;
+  const auto lagging = [&] {
+    for (const auto& w : data::loadDataset(manifest, "").warnings)
+      if (w.find("clock") != std::string::npos) return w;
+    return std::string();
+  };
+  const std::string w = lagging();
+  std::printf("[ CLOCK    ] %s\n", w.c_str());
+  const std::string key = "gt_time_offset = ";
+  ASSERT_NE(w.find(key), std::string::npos) << w;
+  const double offset = std::stod(w.substr(w.find(key) + key.size()));
+  EXPECT_NEAR(offset, 0.3, 0.02);
+  std::string text = test::readText(manifest);
+  text.replace(text.find("[dataset]"), 9, "[dataset]\n" + key + std::to_string(offset));
+  test::writeText(manifest, text);
+  EXPECT_EQ(lagging(), "");
+}
+
 // A reference in another frame than the anchors (turned 25 deg and moved 2.5 m): loading says
 // so and gives the manifest line that states it, and with that line the ranges agree and the
 // warning is gone. Anchors with their ids swapped: no rigid motion explains the ranges, and

@@ -135,6 +135,7 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   if (!ds.manifest.ground_truth.empty())
     ds.ground_truth =
         readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format, rec.step_times);
+  for (auto& p : ds.ground_truth) p.t += ds.manifest.gt_time_offset;
   if (!ds.manifest.map.empty()) {
     try {
       ds.map = std::make_shared<loc::OccupancyMap>(loc::OccupancyMap::load(ds.manifest.map));
@@ -261,6 +262,60 @@ std::optional<Pose2> frameFromFixes(std::vector<RangeBeside> s) {
   return relativePose(move, Pose2::Zero());
 }
 
+// The on-robot ranges to known anchors beside the reference, its pose taken `delta` [s] before
+// each range's stamp (the reference's clock `delta` behind); every `stride`-th range.
+std::vector<RangeBeside> rangesBeside(const Dataset& ds, double delta, size_t stride = 1) {
+  std::vector<RangeBeside> s;
+  size_t k = 0;
+  for (const auto& e : ds.events) {
+    const auto* r = std::get_if<uwb::Range>(&e);
+    if (!r || !r->on_robot || !std::isfinite(r->range) || k++ % stride) continue;
+    const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
+    const auto pose = interpolateGroundTruth(ds.ground_truth, r->t - delta, 1.0);
+    if (a && pose)
+      s.push_back({r->t, r->tag_id, r->anchor_id, uwb::tagPosition(*pose, r->tag_on_robot),
+                   a->position, r->range});
+  }
+  return s;
+}
+
+// The lag of the reference's clock behind the ranges' that makes them agree best, within 5 s:
+// the overall departure on at most 4000 ranges over a grid of lags, then golden-section search
+// between the best one's neighbours, to 5 ms. With its departure, and the departure at no lag.
+struct ClockLag {
+  double lag = 0.0, departure = 0.0, at_zero = 0.0;
+};
+ClockLag clockLag(const Dataset& ds) {
+  size_t ranges = 0;
+  for (const auto& e : ds.events) ranges += std::holds_alternative<uwb::Range>(e);
+  const size_t stride = std::max<size_t>(1, (ranges + 3999) / 4000);
+  const auto at = [&](double lag) {
+    const auto s = rangesBeside(ds, lag, stride);
+    return s.size() < 50 ? HUGE_VAL : departure(s, Pose2::Zero()).overall;
+  };
+  std::vector<double> grid = {0.0};
+  for (double g : {0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0})
+    grid.push_back(g), grid.push_back(-g);
+  std::sort(grid.begin(), grid.end());
+  std::vector<double> d;
+  for (double g : grid) d.push_back(at(g));
+  const size_t best = static_cast<size_t>(std::min_element(d.begin(), d.end()) - d.begin());
+  ClockLag c{grid[best], d[best],
+             d[static_cast<size_t>(std::find(grid.begin(), grid.end(), 0.0) - grid.begin())]};
+  double lo = grid[best > 0 ? best - 1 : best], hi = grid[best + 1 < grid.size() ? best + 1 : best];
+  const double phi = (std::sqrt(5.0) - 1.0) / 2.0;
+  while (hi - lo > 0.005) {
+    const double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
+    if (at(a) < at(b))
+      hi = b;
+    else
+      lo = a;
+  }
+  if (const double mid = 0.5 * (lo + hi), dm = at(mid); dm < c.departure)
+    c.lag = mid, c.departure = dm;
+  return c;
+}
+
 }  // namespace
 
 std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
@@ -268,17 +323,18 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
   // explains the departure (a median departure of 1.5 m is a range std of about 2.2 m).
   constexpr double kLooksRight = 0.25, kUnexplained = 1.5;
   if (ds.ground_truth.size() < 2) return std::nullopt;
-  std::vector<RangeBeside> s;
-  for (const auto& e : ds.events) {
-    const auto* r = std::get_if<uwb::Range>(&e);
-    if (!r || !r->on_robot || !std::isfinite(r->range)) continue;
-    const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
-    const auto pose = interpolateGroundTruth(ds.ground_truth, r->t, 1.0);
-    if (a && pose)
-      s.push_back({r->t, r->tag_id, r->anchor_id, uwb::tagPosition(*pose, r->tag_on_robot),
-                   a->position, r->range});
-  }
+  const std::vector<RangeBeside> s = rangesBeside(ds, 0.0);
   if (s.size() < 50) return std::nullopt;
+  // The clocks: a lag of 50 ms or more that takes a fifth of the departure away, at least 2 cm
+  // of it, and leaves no more than kLooksRight (a frame likewise). Not against a reference sampled
+  // more than 0.5 s apart: its straight chords, and which ranges have a sample within 1 s, move
+  // with the lag more than the lag shows.
+  std::vector<double> steps;
+  for (size_t k = 1; k < ds.ground_truth.size(); ++k)
+    steps.push_back(ds.ground_truth[k].t - ds.ground_truth[k - 1].t);
+  const ClockLag lag = loc::medianOf(steps) <= 0.5 ? clockLag(ds) : ClockLag{};
+  const bool clocks = std::abs(lag.lag) >= 0.05 && lag.departure < 0.8 * lag.at_zero &&
+                      lag.at_zero - lag.departure >= 0.02 && lag.departure <= kLooksRight;
   const Departure before = departure(s, Pose2::Zero());
   std::string bad_links;
   for (const auto& [link, d] : before.per_link)
@@ -288,12 +344,24 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
                     link.first, link.second, d);
       bad_links += one;
     }
-  if (before.overall <= kLooksRight && bad_links.empty()) return std::nullopt;
+  if (!clocks && before.overall <= kLooksRight && bad_links.empty()) return std::nullopt;
   const auto T = before.overall > kLooksRight ? frameFromFixes(s) : std::nullopt;
   // The anchors in the reference's frame: T^-1 applied to them.
   const double after = T ? departure(s, relativePose(*T, Pose2::Zero())).overall : HUGE_VAL;
   const bool moved = T && (T->head<2>().norm() > 0.2 || std::abs(T->z()) > 2.0 * M_PI / 180.0);
-  const bool frame = moved && after < 0.5 * before.overall;
+  // Where both a lag and a frame would explain it, the one that explains more.
+  const bool frame = moved && after < 0.5 * before.overall && after <= kLooksRight &&
+                     !(clocks && lag.departure < after);
+  if (clocks && !frame) {
+    char buf[600];
+    std::snprintf(buf, sizeof buf,
+                  "the ranges agree best with the reference's stamps moved by %+.3f s (each "
+                  "departs from its link's median error by a median %.3f m there, %.3f m as "
+                  "stamped): the reference's clock is likely offset. If so, state it in the "
+                  "manifest: [dataset] gt_time_offset = %.3f",
+                  lag.lag, lag.departure, lag.at_zero, ds.manifest.gt_time_offset + lag.lag);
+    return ds.manifest.rawlog + ": " + buf;
+  }
   if (!frame && before.overall <= kUnexplained && bad_links.empty()) return std::nullopt;
   char buf[1200];
   int n = std::snprintf(buf, sizeof buf,

@@ -281,6 +281,9 @@ Manifest loadManifest(const std::string& path, const std::string& data_dir) {
   m.ground_truth = pathKey("ground_truth");
   m.map = pathKey("map");
   m.gt_max_gap = ini.getDouble("dataset", "gt_max_gap", m.gt_max_gap);
+  m.gt_time_offset = ini.getDouble("dataset", "gt_time_offset", 0.0);
+  if (!std::isfinite(m.gt_time_offset))
+    throwInputError(path, ini.lineOf("dataset", "gt_time_offset"), "gt_time_offset must be finite");
   if (const auto h = ini.get("dataset", "reference_heading")) {
     if (*h != "true" && *h != "false")
       throwInputError(path, ini.lineOf("dataset", "reference_heading"),

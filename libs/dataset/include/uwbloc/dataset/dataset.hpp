@@ -66,12 +66,18 @@ std::optional<std::string> referenceBeyondRecordingWarning(const Dataset& ds);
 /// with fewer than 50 ranges beside it. The departure is the median of |each range's error
 /// against the distance from the reference pose's tag, less its link's median error| (a
 /// consistent bias is no disagreement): about 0.07 m on LOS recordings, 0.2 m under heavy
-/// simulated NLOS. Over 0.25 m, the multilateration fixes (one tag's ranges within 0.1 s, three
-/// anchors or more) are matched to the reference by the rigid motion most of them agree with;
-/// when that motion is more than 0.2 m or 2 deg and halves the departure, the reference is in
-/// another frame than the anchors, and the line gives the [anchors] gt_origin_in_anchor_frame
-/// that says so. Otherwise only a departure over 1.5 m (beyond any range noise) is reported,
-/// naming what else can cause it (the anchors' coordinates or ids, the clocks).
+/// simulated NLOS.
+/// - The clocks: the lag of the reference's stamps (within 5 s) at which the ranges agree best;
+///   one of 50 ms or more that takes a fifth of the departure away, at least 2 cm, and leaves at
+///   most 0.25 m is reported with the [dataset] gt_time_offset that states it (not judged
+///   against a reference sampled more than 0.5 s apart).
+/// - The frame: over 0.25 m, the multilateration fixes (one tag's ranges within 0.1 s, three
+///   anchors or more) are matched to the reference by the rigid motion most of them agree
+///   with; one of more than 0.2 m or 2 deg that halves the departure and leaves at most 0.25 m
+///   means another frame, reported with the [anchors] gt_origin_in_anchor_frame that says so.
+///   Where a lag and a frame both explain it, the one that leaves less.
+/// - Otherwise a departure over 1.5 m (beyond any range noise), overall or on one link, is
+///   reported with those links and what else can cause it.
 std::optional<std::string> rangeReferenceWarning(const Dataset& ds);
 
 /// Range-feature side file: CSV "t,anchor_id,range,rx_power_dbm,fp_power_dbm", one row per

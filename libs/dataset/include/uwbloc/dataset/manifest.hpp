@@ -6,6 +6,8 @@
 //   ground_truth        = path                 (optional)
 //   ground_truth_format = step_xyphi | time_xyphi | tum
 //   gt_max_gap          = 1.0                  (longest ground-truth gap to interpolate over [s])
+//   gt_time_offset      = 0.0                  (added to every reference stamp [s]: its clock's lag
+//                                               behind the recording's)
 //   reference_heading   = true                 (false: the reference's heading is not measured,
 //                                               so no heading error is scored)
 //   map                 = path                 (optional)
@@ -89,6 +91,7 @@ struct Manifest {
   std::string ground_truth;
   GroundTruthFormat ground_truth_format = GroundTruthFormat::kNone;
   double gt_max_gap = 1.0;        ///< estimates are scored only between GT samples this close [s]
+  double gt_time_offset = 0.0;    ///< added to every reference stamp [s]
   bool reference_heading = true;  ///< the reference's heading is measured (scored as yaw error)
   std::string map;
   std::string range_features;
