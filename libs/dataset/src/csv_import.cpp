@@ -451,12 +451,13 @@ void checkTagPlaces(const CsvImportRequest& req, const std::vector<loc::Event>& 
     const double at_given = loc::medianOf(rangeDeviations(samples, tag));
     const TagFit fit = fitTagOnRobot(samples, tag, heading, true);
     if ((fit.tag - tag).norm() <= 0.1 || fit.deviation >= 0.8 * at_given) continue;
-    char buf[600];
+    char buf[800];
     std::snprintf(buf, sizeof buf,
                   "WARNING: %s: against the reference, tag %d's ranges agree best with the tag "
                   "at (%.2f, %.2f, %.2f) m on the robot (median deviation from each anchor's "
                   "median error %.3f m), not at (%.2f, %.2f, %.2f) m %s (%.3f m%s): if that is "
-                  "where it sits, give --tag %d,%.2f,%.2f,%.2f",
+                  "where it sits, give --tag %d,%.2f,%.2f,%.2f (a lag of the reference's clock "
+                  "also looks like a lever arm along the travel: see the clock check below)",
                   req.ranges.c_str(), id, fit.tag.x(), fit.tag.y(), fit.tag.z(), fit.deviation,
                   tag.x(), tag.y(), tag.z(), given ? "as given" : "(none given: the origin)",
                   at_given,
