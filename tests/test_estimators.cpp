@@ -168,6 +168,17 @@ INSTANTIATE_TEST_SUITE_P(Registry, EveryMethod,
                          ::testing::ValuesIn(loc::Registry::builtin().names()), testName);
 
 // Uwb-only methods on the synthetic square loop (exact odometry, four anchors, no LiDAR).
+// The median the methods and the data checks share: the upper one of an even count, 0 when
+// empty, and NaNs left out (std::nth_element given one may read past the range).
+TEST(MedianOf, UpperMedianWithoutTheNaNs) {
+  EXPECT_EQ(loc::medianOf({}), 0.0);
+  EXPECT_EQ(loc::medianOf({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_EQ(loc::medianOf({4.0, 1.0, 3.0, 2.0}), 3.0);
+  EXPECT_EQ(loc::medianOf({NAN, 5.0, NAN, 1.0, NAN, 3.0, NAN}), 3.0);
+  EXPECT_EQ(loc::medianOf({NAN, NAN}), 0.0);
+  EXPECT_EQ(loc::medianOf({HUGE_VAL, 1.0, 2.0}), 2.0);
+}
+
 TEST(SyntheticLoop, UwbMethodsConverge) {
   const data::Dataset ds = test::makeSquareLoop(3);
   for (const auto& [m, bound] :

@@ -34,8 +34,10 @@ constexpr std::array<EnumName<BiasMode>, 3> enumNames(BiasMode) {
   return {{{BiasMode::kOff, "0"}, {BiasMode::kOn, "1"}, {BiasMode::kAuto, "auto"}}};
 }
 
-/// The median of v (the upper one for an even count; 0 when empty).
+/// The median of v (the upper one for an even count; 0 when empty), NaNs left out: they have no
+/// order, and std::nth_element given one may read past the range.
 inline double medianOf(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return std::isnan(x); }), v.end());
   if (v.empty()) return 0.0;
   const auto m = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), m, v.end());
