@@ -291,6 +291,11 @@ TEST(CsvImport, WarnsWhereTheRangesPlaceTheTagElsewhere) {
   EXPECT_NE(warnings(r).find("--tag 0,0.25,-0.15,0.80"), std::string::npos);
   r.tags[0] = tag;
   EXPECT_EQ(warnings(r), "");
+  // An anchor 1 000 km up (a typo): the height search is bounded, the import ends.
+  r.anchors = test::writeText(dir / "far.csv", "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-4,5,1e6\n");
+  r.tags.clear();
+  EXPECT_GT(data::importCsv(r, (dir / "far").string()).ranges, 0);
+  r.anchors = anchors;
   r.tags.clear(), r.tag_height.reset(), r.reference.clear();
   bool noted = false;
   for (const auto& n : data::importCsv(r, (dir / "out").string()).notes)

@@ -248,7 +248,7 @@ std::optional<Pose2> frameFromFixes(std::vector<RangeBeside> s) {
   double least = departure(sub, move).overall;
   for (double step = 0.1; step >= 0.005; step /= 2.0) {
     bool better = true;
-    while (better) {
+    for (int moves = 0; better && moves < 200; ++moves) {  // bounded whatever the data
       better = false;
       for (int k = 0; k < 3; ++k)
         for (double sign : {-1.0, 1.0}) {

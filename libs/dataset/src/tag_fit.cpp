@@ -58,7 +58,9 @@ TagFit fitTagOnRobot(const std::vector<TagFitSample>& samples, const Eigen::Vect
     for (int round = 0; round < 2; ++round) {
       if (fit_height) {
         std::vector<Eigen::Vector3d> c;
-        for (int k = 0; z_lo + kStep * k <= z_hi + 1e-9; ++k)
+        // At most 400 heights (20 m of anchors' span): a typo's anchor 1e6 m up must not make
+        // the search run for ever.
+        for (int k = 0; k <= 400 && z_lo + kStep * k <= z_hi + 1e-9; ++k)
           c.emplace_back(fit.tag.x(), fit.tag.y(), z_lo + kStep * k);
         keepBest(sub, c, fit.tag, best);
       }
