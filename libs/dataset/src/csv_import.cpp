@@ -435,15 +435,10 @@ void checkTagPlaces(const CsvImportRequest& req, const std::vector<loc::Event>& 
     return;
   }
   std::map<int, std::pair<Eigen::Vector3d, std::vector<TagFitSample>>> by_tag;
-  for (const auto& e : events) {
-    const auto* r = std::get_if<uwb::Range>(&e);
-    if (!r || !r->on_robot) continue;
-    const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
-    const auto p = interpolateGroundTruth(reference, r->t, 1.0);
-    if (!a || !p) continue;
-    auto& [tag, samples] = by_tag[r->tag_id];
-    tag = r->tag_on_robot;
-    samples.push_back({*p, a->position, r->range, r->anchor_id});
+  for (auto& sample : rangesBesideReference(events, anchors, reference)) {
+    auto& [tag, samples] = by_tag[sample.tag_id];
+    tag = sample.tag_on_robot;
+    samples.push_back(std::move(sample));
   }
   for (const auto& [id, entry] : by_tag) {
     const auto& [tag, samples] = entry;

@@ -10,6 +10,7 @@
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/dataset/text_io.hpp"
 #include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/multilateration.hpp"
@@ -160,39 +161,25 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
 
 namespace {
 
-// A range beside the reference: the tag's position there and the anchor's.
-struct RangeBeside {
-  double t = 0.0;
-  int tag_id = 0, anchor_id = 0;
-  Eigen::Vector3d tag, anchor;
-  double range = 0.0;
-};
-
 // How far the ranges depart from the reference, with the anchors' x, y moved by `move`: the
 // median |error - its link's median error|, over all of them and per link (anchor, tag).
 struct Departure {
   double overall = 0.0;
   std::map<std::pair<int, int>, double> per_link;
 };
-Departure departure(const std::vector<RangeBeside>& s, const Pose2& move) {
-  std::map<std::pair<int, int>, std::vector<double>> by_link;
+Departure departure(const std::vector<TagFitSample>& s, const Pose2& move) {
   std::vector<double> err(s.size());
   for (size_t i = 0; i < s.size(); ++i) {
     Eigen::Vector3d a = s[i].anchor;
     a.head<2>() = transformPoint(move, a.head<2>());
-    err[i] = s[i].range - (a - s[i].tag).norm();
-    by_link[{s[i].anchor_id, s[i].tag_id}].push_back(err[i]);
+    err[i] = s[i].range - (a - uwb::tagPosition(s[i].pose, s[i].tag_on_robot)).norm();
   }
-  std::map<std::pair<int, int>, double> median;
-  for (auto& [link, e] : by_link) median[link] = loc::medianOf(e);
+  const auto dev = aboutLinkMedians(std::move(err), s);
+  std::map<Link, std::vector<double>> by_link;
+  for (size_t i = 0; i < s.size(); ++i) by_link[{s[i].anchor_id, s[i].tag_id}].push_back(dev[i]);
   Departure d;
-  for (auto& [link, e] : by_link) {
-    for (double& v : e) v = std::abs(v - median[link]);
-    d.per_link[link] = loc::medianOf(std::move(e));
-  }
-  for (size_t i = 0; i < s.size(); ++i)
-    err[i] = std::abs(err[i] - median[{s[i].anchor_id, s[i].tag_id}]);
-  d.overall = loc::medianOf(std::move(err));
+  for (auto& [link, e] : by_link) d.per_link[link] = loc::medianOf(std::move(e));
+  d.overall = loc::medianOf(dev);
   return d;
 }
 
@@ -203,24 +190,25 @@ Departure departure(const std::vector<RangeBeside>& s, const Pose2& move) {
 // fixes, the motion polished on the ranges themselves (least overall departure, a pattern
 // search down to 5 mm and 0.05 deg on at most 2000 ranges). Nothing with fewer than 10 fixes or
 // a quarter of them agreeing.
-std::optional<Pose2> frameFromFixes(std::vector<RangeBeside> s) {
-  std::sort(s.begin(), s.end(), [](const RangeBeside& a, const RangeBeside& b) {
+std::optional<Pose2> frameFromFixes(std::vector<TagFitSample> s) {
+  std::sort(s.begin(), s.end(), [](const TagFitSample& a, const TagFitSample& b) {
     return std::tie(a.tag_id, a.t) < std::tie(b.tag_id, b.t);
   });
   std::vector<uwb::BodyPoint> pairs;
   for (size_t i = 0; i < s.size();) {
-    std::map<int, const RangeBeside*> latest;  // per anchor, within 0.1 s of the first
+    std::map<int, const TagFitSample*> latest;  // per anchor, within 0.1 s of the first
     size_t j = i;
     for (; j < s.size() && s[j].tag_id == s[i].tag_id && s[j].t - s[i].t <= 0.1; ++j)
       latest[s[j].anchor_id] = &s[j];
     std::vector<uwb::PlanarRange> planar;
     for (const auto& [id, r] : latest) {
-      const double dz = r->anchor.z() - r->tag.z(), h2 = r->range * r->range - dz * dz;
+      const double dz = r->anchor.z() - r->tag_on_robot.z(), h2 = r->range * r->range - dz * dz;
       if (h2 > 0.0) planar.push_back({r->anchor.head<2>(), std::sqrt(h2)});
     }
     if (planar.size() >= 3)
       if (const auto fix = uwb::solveGaussNewton(planar); fix.ok())
-        pairs.push_back({s[j - 1].tag.head<2>(), fix.position, Eigen::Matrix2d::Identity()});
+        pairs.push_back({uwb::tagPosition(s[j - 1].pose, s[j - 1].tag_on_robot).head<2>(),
+                         fix.position, Eigen::Matrix2d::Identity()});
     i = j;
   }
   if (pairs.size() < 10) return std::nullopt;
@@ -241,7 +229,7 @@ std::optional<Pose2> frameFromFixes(std::vector<RangeBeside> s) {
   }
   if (best.size() < std::max<size_t>(10, pairs.size() / 4)) return std::nullopt;
   // Polished as the move of the anchors into the reference's frame, T^-1.
-  std::vector<RangeBeside> sub;
+  std::vector<TagFitSample> sub;
   for (size_t i = 0, step = (s.size() + 1999) / 2000; i < s.size(); i += step) sub.push_back(s[i]);
   Pose2 move =
       relativePose(uwb::procrustes2d(best, std::vector<double>(best.size(), 1.0)), Pose2::Zero());
@@ -262,23 +250,6 @@ std::optional<Pose2> frameFromFixes(std::vector<RangeBeside> s) {
   return relativePose(move, Pose2::Zero());
 }
 
-// The on-robot ranges to known anchors beside the reference, its pose taken `delta` [s] before
-// each range's stamp (the reference's clock `delta` behind); every `stride`-th range.
-std::vector<RangeBeside> rangesBeside(const Dataset& ds, double delta, size_t stride = 1) {
-  std::vector<RangeBeside> s;
-  size_t k = 0;
-  for (const auto& e : ds.events) {
-    const auto* r = std::get_if<uwb::Range>(&e);
-    if (!r || !r->on_robot || !std::isfinite(r->range) || k++ % stride) continue;
-    const uwb::Anchor* a = uwb::findAnchor(ds.anchors, r->anchor_id);
-    const auto pose = interpolateGroundTruth(ds.ground_truth, r->t - delta, 1.0);
-    if (a && pose)
-      s.push_back({r->t, r->tag_id, r->anchor_id, uwb::tagPosition(*pose, r->tag_on_robot),
-                   a->position, r->range});
-  }
-  return s;
-}
-
 // The lag of the reference's clock behind the ranges' that makes them agree best, within 5 s:
 // the overall departure on at most 4000 ranges over a grid of lags, then golden-section search
 // between the best one's neighbours, to 5 ms. With its departure, and the departure at no lag.
@@ -286,11 +257,18 @@ struct ClockLag {
   double lag = 0.0, departure = 0.0, at_zero = 0.0;
 };
 ClockLag clockLag(const Dataset& ds) {
+  // The ranges searched, picked once.
   size_t ranges = 0;
   for (const auto& e : ds.events) ranges += std::holds_alternative<uwb::Range>(e);
   const size_t stride = std::max<size_t>(1, (ranges + 3999) / 4000);
+  std::vector<loc::Event> some;
+  size_t k = 0;
+  for (const auto& e : ds.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e);
+        r && r->on_robot && std::isfinite(r->range) && k++ % stride == 0)
+      some.push_back(e);
   const auto at = [&](double lag) {
-    const auto s = rangesBeside(ds, lag, stride);
+    const auto s = rangesBesideReference(some, ds.anchors, ds.ground_truth, lag);
     return s.size() < 50 ? HUGE_VAL : departure(s, Pose2::Zero()).overall;
   };
   std::vector<double> grid = {0.0};
@@ -323,7 +301,7 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
   // explains the departure (a median departure of 1.5 m is a range std of about 2.2 m).
   constexpr double kLooksRight = 0.25, kUnexplained = 1.5;
   if (ds.ground_truth.size() < 2) return std::nullopt;
-  const std::vector<RangeBeside> s = rangesBeside(ds, 0.0);
+  const auto s = rangesBesideReference(ds.events, ds.anchors, ds.ground_truth);
   if (s.size() < 50) return std::nullopt;
   // The clocks: a lag of 50 ms or more that takes a fifth of the departure away, at least 2 cm
   // of it, and leaves no more than kLooksRight (a frame likewise). Not against a reference sampled

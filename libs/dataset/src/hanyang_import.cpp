@@ -140,15 +140,7 @@ std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
                                     const std::vector<TimedPose>& gt, double tag_height,
                                     ImportSummary& summary) {
   std::vector<RangeLabel> labels(events.size());
-  std::vector<TagFitSample> samples;
-  std::vector<size_t> event_of;
-  for (size_t i = 0; i < events.size(); ++i) {
-    const auto* r = std::get_if<uwb::Range>(&events[i]);
-    if (!r) continue;
-    const auto p = interpolateGroundTruth(gt, r->t, 1.0);  // not across a gap over 1 s
-    const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
-    if (p && a) samples.push_back({*p, a->position, r->range, r->anchor_id}), event_of.push_back(i);
-  }
+  const auto samples = rangesBesideReference(events, anchors, gt);
   if (samples.size() < 50) return labels;
   const Eigen::Vector3d origin(0.0, 0.0, tag_height);
   const double at_origin = loc::medianOf(rangeDeviations(samples, origin));
@@ -158,7 +150,7 @@ std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
   long nlos = 0;
   for (size_t k = 0; k < samples.size(); ++k) {
     const auto& s = samples[k];
-    auto& label = labels[event_of[k]];
+    auto& label = labels[s.event];
     label.true_range = (uwb::tagPosition(s.pose, fit.tag) - s.anchor).norm();
     label.nlos = dev[k] > threshold;
     nlos += label.nlos;
@@ -171,8 +163,8 @@ std::vector<RangeLabel> rangeLabels(const std::vector<loc::Event>& events,
                 samples.size(), fit.tag.x(), fit.tag.y(), fit.deviation, at_origin, nlos,
                 threshold);
   summary.notes.push_back(buf);
-  for (const auto& [id, b] : fit.bias) {
-    std::snprintf(buf, sizeof buf, "  anchor %d: median range error %+.3f m", id, b);
+  for (const auto& [link, b] : fit.bias) {
+    std::snprintf(buf, sizeof buf, "  anchor %d: median range error %+.3f m", link.first, b);
     summary.notes.push_back(buf);
   }
   return labels;

@@ -8,21 +8,43 @@
 
 namespace uwbloc::data {
 
-std::vector<double> rangeDeviations(const std::vector<TagFitSample>& samples,
-                                    const Eigen::Vector3d& tag, std::map<int, double>* bias) {
-  std::map<int, std::vector<double>> by_anchor;
-  std::vector<double> err(samples.size());
-  for (size_t i = 0; i < samples.size(); ++i) {
-    const auto& s = samples[i];
-    err[i] = s.range - (uwb::tagPosition(s.pose, tag) - s.anchor).norm();
-    by_anchor[s.anchor_id].push_back(err[i]);
+std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& events,
+                                                const std::vector<uwb::Anchor>& anchors,
+                                                const std::vector<TimedPose>& reference,
+                                                double lag) {
+  std::vector<TagFitSample> s;
+  for (size_t i = 0; i < events.size(); ++i) {
+    const auto* r = std::get_if<uwb::Range>(&events[i]);
+    if (!r || !r->on_robot || !std::isfinite(r->range)) continue;
+    const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
+    const auto pose = interpolateGroundTruth(reference, r->t - lag, 1.0);
+    if (a && pose)
+      s.push_back(
+          {*pose, a->position, r->range, r->anchor_id, r->tag_id, r->tag_on_robot, r->t, i});
   }
-  std::map<int, double> median;
-  for (auto& [id, e] : by_anchor) median[id] = loc::medianOf(std::move(e));
+  return s;
+}
+
+std::vector<double> aboutLinkMedians(std::vector<double> err,
+                                     const std::vector<TagFitSample>& samples,
+                                     std::map<Link, double>* median) {
+  std::map<Link, std::vector<double>> by_link;
   for (size_t i = 0; i < samples.size(); ++i)
-    err[i] = std::abs(err[i] - median[samples[i].anchor_id]);
-  if (bias) *bias = std::move(median);
+    by_link[{samples[i].anchor_id, samples[i].tag_id}].push_back(err[i]);
+  std::map<Link, double> med;
+  for (auto& [link, e] : by_link) med[link] = loc::medianOf(std::move(e));
+  for (size_t i = 0; i < samples.size(); ++i)
+    err[i] = std::abs(err[i] - med[{samples[i].anchor_id, samples[i].tag_id}]);
+  if (median) *median = std::move(med);
   return err;
+}
+
+std::vector<double> rangeDeviations(const std::vector<TagFitSample>& samples,
+                                    const Eigen::Vector3d& tag, std::map<Link, double>* bias) {
+  std::vector<double> err(samples.size());
+  for (size_t i = 0; i < samples.size(); ++i)
+    err[i] = samples[i].range - (uwb::tagPosition(samples[i].pose, tag) - samples[i].anchor).norm();
+  return aboutLinkMedians(std::move(err), samples, bias);
 }
 
 namespace {

@@ -4,15 +4,20 @@
 // tag's. The tag's place on the robot (its lever arm, and its height) decides every true range,
 // and a wrong one reads as a range error that swings with the heading and the distance. The fit
 // below takes the tag position that makes the ranges agree best with the reference: the least
-// median |error - its anchor's median error| (each anchor's median error is a constant bias, an
-// antenna delay, and no evidence about the tag), searched on a 5 cm grid, lever arm within 1 m
-// of the start, height within the anchors' span widened by 1 m. The median makes NLOS ranges
+// median |error - its link's median error| (each anchor-tag link's median error is a constant
+// bias, an antenna delay, and no evidence about the tag), searched on a 5 cm grid, lever arm within
+// 1 m of the start, height within the anchors' span widened by 1 m. The median makes NLOS ranges
 // and outliers weigh nothing as long as they are fewer than half.
 #pragma once
 
 #include <Eigen/Core>
 #include <map>
+#include <utility>
 #include <vector>
+
+#include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/localization/events.hpp"
+#include "uwbloc/uwb/types.hpp"
 
 namespace uwbloc::data {
 
@@ -21,20 +26,37 @@ struct TagFitSample {
   Eigen::Vector3d pose;    ///< the robot's reference pose (x, y, yaw)
   Eigen::Vector3d anchor;  ///< the anchor's position
   double range = 0.0;      ///< the measured range [m]
-  int anchor_id = 0;
+  int anchor_id = 0, tag_id = 0;
+  Eigen::Vector3d tag_on_robot = Eigen::Vector3d::Zero();  ///< where the recording puts the tag
+  double t = 0.0;                                          ///< the range's stamp [s]
+  size_t event = 0;                                        ///< its index in the events
 };
+using Link = std::pair<int, int>;  ///< (anchor id, tag id)
+
+/// The finite ranges from the robot's tags (on_robot) to known anchors that have a reference
+/// pose `lag` [s] before their stamp (interpolated between poses at most 1 s apart).
+std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& events,
+                                                const std::vector<uwb::Anchor>& anchors,
+                                                const std::vector<TimedPose>& reference,
+                                                double lag = 0.0);
+
+/// |err_i - the median of its link's errors| for the samples' errors `err`; each link's median
+/// into `median` when given.
+std::vector<double> aboutLinkMedians(std::vector<double> err,
+                                     const std::vector<TagFitSample>& samples,
+                                     std::map<Link, double>* median = nullptr);
 
 struct TagFit {
   Eigen::Vector3d tag = Eigen::Vector3d::Zero();  ///< on the robot (x, y, z) [m]
-  double deviation = 0.0;      ///< median |error - its anchor's median error| there [m]
-  std::map<int, double> bias;  ///< anchor id -> median range error there [m]
+  double deviation = 0.0;       ///< median |error - its link's median error| there [m]
+  std::map<Link, double> bias;  ///< each link's median range error there [m]
 };
 
-/// |error - its anchor's median error| of every sample with the tag at `tag` on the robot; each
-/// anchor's median error into `bias` when given.
+/// |error - its link's median error| of every sample with the tag at `tag` on the robot; each
+/// link's median error into `bias` when given.
 std::vector<double> rangeDeviations(const std::vector<TagFitSample>& samples,
                                     const Eigen::Vector3d& tag,
-                                    std::map<int, double>* bias = nullptr);
+                                    std::map<Link, double>* bias = nullptr);
 
 /// The fit from `start`: the lever arm (x, y) when `fit_lever` (the reference must carry the
 /// heading), the height when `fit_height`; the rest stays as in `start`. Uses at most 2000
