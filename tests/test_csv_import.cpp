@@ -332,56 +332,132 @@ TEST(CsvImport, WarnsWhenTheReferencesClockLags) {
   EXPECT_EQ(lagging(), "");
 }
 
-// A reference in another frame than the anchors (turned 25 deg and moved 2.5 m): loading says
-// so and gives the manifest line that states it, and with that line the ranges agree and the
-// warning is gone. Anchors with their ids swapped: no rigid motion explains the ranges, and
-// the warning says what to check. The right data: no warning.
-TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrame) {
-  const auto dir = test::scratchDir();
-  const Eigen::Vector3d tag(0.0, 0.0, 0.8), frame(2.0, -1.5, 25.0 * M_PI / 180.0);
-  const auto load = [&](const std::string& name, const std::string& anchors,
-                        const Eigen::Vector3d& moved) {
-    const auto [ranges, ref] = test::driveACircle(tag, moved);
-    data::CsvImportRequest r;
-    r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
-    r.anchors = test::writeText(dir / (name + "_a.csv"), anchors);
-    r.reference = test::writeText(dir / (name + "_ref.csv"), ref);
-    r.tags[0] = tag;
-    return data::importCsv(r, (dir / name).string()).manifest;
-  };
-  const auto disagreement = [](const data::Dataset& ds) {
-    for (const auto& w : ds.warnings)
-      if (w.find("disagree with the reference") != std::string::npos) return w;
-    return std::string();
-  };
-  const std::string manifest = load("moved", test::kFourAnchors, frame);
+namespace {
+
+// The reference's y and heading negated: `t,x,y,theta` rows, or TUM's `t x y z qx qy qz qw`.
+std::string mirrored(const std::string& reference) {
+  std::istringstream in(reference);
+  std::string out;
+  for (std::string line; std::getline(in, line);) {
+    const bool tum = line.find(',') == std::string::npos;
+    std::vector<std::string> f;
+    std::istringstream row(line);
+    for (std::string v;
+         tum ? static_cast<bool>(row >> v) : static_cast<bool>(std::getline(row, v, ','));)
+      f.push_back(v);
+    if (f.size() >= 4 && f[0] != "t" && f[0][0] != '#')
+      for (size_t k : tum ? std::vector<size_t>{2, 6} : std::vector<size_t>{2, 3})
+        f[k] = std::to_string(-std::stod(f[k]));
+    for (size_t k = 0; k < f.size(); ++k) out += (k ? (tum ? " " : ",") : "") + f[k];
+    out += "\n";
+  }
+  return out;
+}
+
+// A circle drive imported into `dir` with its reference moved by `frame` (then mirrored when
+// `mirror`): its manifest. Its ranges one anchor at a time when `one_at_a_time`.
+std::string importCircle(const std::filesystem::path& dir, const std::string& name,
+                         const std::string& anchors, const Eigen::Vector3d& frame,
+                         bool one_at_a_time, bool mirror = false) {
+  const Eigen::Vector3d tag(0.0, 0.0, 0.8);
+  auto [ranges, ref] = test::driveACircle(tag, frame, 0.0, one_at_a_time);
+  if (mirror) ref = mirrored(ref);
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
+  r.anchors = test::writeText(dir / (name + "_a.csv"), anchors);
+  r.reference = test::writeText(dir / (name + "_ref.csv"), ref);
+  r.tags[0] = tag;
+  return data::importCsv(r, (dir / name).string()).manifest;
+}
+
+std::string disagreement(const data::Dataset& ds) {
+  for (const auto& w : ds.warnings)
+    if (w.find("disagree with the reference") != std::string::npos) return w;
+  return std::string();
+}
+
+// The warning on a reference moved by `frame` (and mirrored when `mirror`) states the frame's
+// inverse, and once the manifest states it (and the reference is mirrored back) the ranges agree
+// with the reference. The manifest with it in.
+std::string expectTheFrameStated(const std::string& manifest, const Eigen::Vector3d& frame,
+                                 const std::string& fit_by, bool mirror = false) {
   const std::string w = disagreement(data::loadDataset(manifest, ""));
+  std::printf("[ FRAME    ] %s\n", w.c_str());
+  EXPECT_NE(w.find("The " + fit_by + " fit the reference" + (mirror ? " mirrored" : " after")),
+            std::string::npos)
+      << w;
   const std::string key = "gt_origin_in_anchor_frame = ";
-  ASSERT_NE(w.find(key), std::string::npos) << w;
+  if (w.find(key) == std::string::npos) {
+    ADD_FAILURE() << w;
+    return manifest;
+  }
   double x = 0, y = 0, yaw_deg = 0;
   std::istringstream(w.substr(w.find(key) + key.size())) >> x >> y >> yaw_deg;
   const Eigen::Vector3d inverse = relativePose(frame, Eigen::Vector3d::Zero());
   EXPECT_NEAR(x, inverse.x(), 0.05);
   EXPECT_NEAR(y, inverse.y(), 0.05);
   EXPECT_NEAR(yaw_deg, inverse.z() * 180.0 / M_PI, 0.5);
-  // Stated in the manifest, the ranges agree with the reference.
   std::string text = test::readText(manifest);
   text.replace(text.find("[anchors]"), 9, "[anchors]\n" + key + w.substr(w.find(key) + key.size()));
   test::writeText(manifest, text);
-  const auto stated = data::loadDataset(manifest, "");
-  EXPECT_EQ(disagreement(stated), "");
-  EXPECT_LT(eval::evaluateMethod(stated, "uwb-gn", 1, 1).metrics.rmse_2d, 0.1);
+  if (mirror) {
+    const auto reference = std::filesystem::path(manifest).parent_path() / "ground_truth.tum";
+    test::writeText(reference, mirrored(test::readText(reference)));
+  }
+  EXPECT_EQ(disagreement(data::loadDataset(manifest, "")), "");
+  return manifest;
+}
+
+}  // namespace
+
+// A reference in another frame than the anchors (turned 25 deg and moved 2.5 m): loading says
+// so and gives the manifest line that states it, and with that line the ranges agree and the
+// warning is gone. Two anchors with their ids swapped: no rigid motion explains the ranges,
+// and the warning says what to check (not two across the diagonal of the square: those, heights
+// and all, are its mirror image, as a mirrored reference would be). The right data: no warning.
+TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrame) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d frame(2.0, -1.5, 25.0 * M_PI / 180.0);
+  const std::string manifest = expectTheFrameStated(
+      importCircle(dir, "moved", test::kFourAnchors, frame, false), frame, "multilateration fixes");
+  EXPECT_LT(eval::evaluateMethod(data::loadDataset(manifest, ""), "uwb-gn", 1, 1).metrics.rmse_2d,
+            0.1);
 
   const auto swapped = data::loadDataset(
-      load("swapped", "1,5,5,1.5\n2,5,-4,2.2\n3,-4,-4,0.4\n4,-4,5,2.6\n", Eigen::Vector3d::Zero()),
+      importCircle(dir, "swapped", "1,5,-4,2.2\n2,-4,-4,0.4\n3,5,5,1.5\n4,-4,5,2.6\n",
+                   Eigen::Vector3d::Zero(), false),
       "");
   const std::string sw = disagreement(swapped);
-  std::printf("[ FRAME    ] %s\n[ FRAME    ] %s\n", w.c_str(), sw.c_str());
+  std::printf("[ FRAME    ] %s\n", sw.c_str());
   EXPECT_NE(sw.find("No rigid motion"), std::string::npos) << sw;
   EXPECT_NE(sw.find("anchors' coordinates and ids"), std::string::npos) << sw;
-  EXPECT_EQ(disagreement(
-                data::loadDataset(load("right", test::kFourAnchors, Eigen::Vector3d::Zero()), "")),
-            "");
+  EXPECT_EQ(
+      disagreement(data::loadDataset(
+          importCircle(dir, "right", test::kFourAnchors, Eigen::Vector3d::Zero(), false), "")),
+      "");
+}
+
+// A reference in a left-handed frame: its y and heading negated.
+TEST(CsvImport, WarnsWhenTheReferenceIsMirrored) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d frame(1.0, 2.0, 60.0 * M_PI / 180.0);
+  expectTheFrameStated(importCircle(dir, "mirrored", test::kFourAnchors, frame, false, true), frame,
+                       "multilateration fixes", true);
+  expectTheFrameStated(importCircle(dir, "mirrored1", test::kFourAnchors, frame, true, true), frame,
+                       "ranges", true);
+}
+
+// Ranges that come one anchor at a time give no multilateration fix; the frame is found from the
+// ranges themselves.
+TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrameWithOneAnchorAtATime) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d frame(-3.0, 1.0, -140.0 * M_PI / 180.0);
+  expectTheFrameStated(importCircle(dir, "moved1", test::kFourAnchors, frame, true), frame,
+                       "ranges");
+  EXPECT_EQ(
+      disagreement(data::loadDataset(
+          importCircle(dir, "right1", test::kFourAnchors, Eigen::Vector3d::Zero(), true), "")),
+      "");
 }
 
 // A spreadsheet's export: a UTF-8 byte-order mark, semicolons, decimal commas, CRLF line ends
