@@ -225,9 +225,8 @@ Pose2 polishedMove(const std::vector<TagFitSample>& s, Pose2 move) {
   // The median has corners and flat stretches where the search stops short. On precise ranges
   // (departing by kLooksRight or less there) a least squares fit follows from there (Gauss-Newton,
   // 10 steps) of the move and each link's bias, on the ranges that depart by at most three times
-  // the median departure (5 cm at least); kept when it departs less. Not on noisy ranges: there
-  // least squares follows their tails (Plaza2 turned: 0.8 m and 1.4 deg off, where the search
-  // alone stops 0.1 m and 0.0 deg off).
+  // the median departure (5 cm at least); kept when it departs less. Not on noisy ranges, whose
+  // noise is larger than the median's corners and whose tails least squares would follow.
   const Departure at = departure(sub, move);
   if (at.overall > kLooksRight) return move;
   std::map<Link, int> link_index;
@@ -335,10 +334,11 @@ std::optional<Pose2> frameFromFixes(std::vector<TagFitSample> s) {
 // The same motion T from the ranges alone, for recordings whose ranges come one anchor at a
 // time and so give no fixes. For a heading theta of T, each range says that T's translation t
 // lies on a circle: |t - (anchor - R(theta) p)| = planar range, p the reference's tag position.
-// At the right heading the circles of most ranges meet at one point. So, on every heading 2 deg
-// apart, the t that most circles pass within 0.5 m of (t from three circles drawn with a fixed
-// seed, 100 draws, on at most 400 ranges evenly spread); the heading and t with the most, then
-// polished as above. Nothing when fewer than a quarter of the ranges (and 30) agree.
+// At the right heading the circles of most ranges meet at one point (their radii less a bias
+// common to all). So, on every heading 2 deg apart, the t that most circles pass within 1 m of
+// (t and the bias from four circles drawn with a fixed seed, 100 draws, on at most 400 ranges
+// evenly spread); the heading and t with the most, then polished as above. Nothing when fewer
+// than a quarter of the ranges (and 30) agree.
 std::optional<Pose2> frameFromRanges(const std::vector<TagFitSample>& s) {
   struct Circle {
     Eigen::Vector2d anchor, p;
