@@ -166,20 +166,26 @@ namespace {
 // explains the departure (a median departure of 1.5 m is a range std of about 2.2 m).
 constexpr double kLooksRight = 0.25, kUnexplained = 1.5;
 
-// How far the ranges depart from the reference, with the anchors' x, y moved by `move`: the
-// median |error - its link's median error|, over all of them and per link (anchor, tag).
-struct Departure {
-  double overall = 0.0;
-  std::map<std::pair<int, int>, double> per_link;
-};
-Departure departure(const std::vector<TagFitSample>& s, const Pose2& move) {
+// Each range's error against the reference's tag position, with the anchors' x, y moved by
+// `move`.
+std::vector<double> rangeErrors(const std::vector<TagFitSample>& s, const Pose2& move) {
   std::vector<double> err(s.size());
   for (size_t i = 0; i < s.size(); ++i) {
     Eigen::Vector3d a = s[i].anchor;
     a.head<2>() = transformPoint(move, a.head<2>());
     err[i] = s[i].range - (a - uwb::tagPosition(s[i].pose, s[i].tag_on_robot)).norm();
   }
-  const auto dev = aboutLinkMedians(std::move(err), s);
+  return err;
+}
+
+// How far the ranges depart from the reference, with the anchors' x, y moved by `move`: the
+// median |error - its link's median error|, over all of them and per link (anchor, tag).
+struct Departure {
+  double overall = 0.0;
+  std::map<Link, double> per_link;
+};
+Departure departure(const std::vector<TagFitSample>& s, const Pose2& move) {
+  const auto dev = aboutLinkMedians(rangeErrors(s, move), s);
   std::map<Link, std::vector<double>> by_link;
   for (size_t i = 0; i < s.size(); ++i) by_link[{s[i].anchor_id, s[i].tag_id}].push_back(dev[i]);
   Departure d;
@@ -232,27 +238,22 @@ Pose2 polishedMove(const std::vector<TagFitSample>& s, Pose2 move) {
   std::map<Link, int> link_index;
   for (const auto& [link, d] : at.per_link)
     link_index.emplace(link, static_cast<int>(link_index.size()));
-  const auto deviation = [&](const Pose2& m, size_t i) {
-    Eigen::Vector3d a = sub[i].anchor;
-    a.head<2>() = transformPoint(m, a.head<2>());
-    return sub[i].range - (a - uwb::tagPosition(sub[i].pose, sub[i].tag_on_robot)).norm();
-  };
-  std::vector<double> err(sub.size());
-  for (size_t i = 0; i < sub.size(); ++i) err[i] = deviation(move, i);
+  const std::vector<double> err = rangeErrors(sub, move);
   const auto dev = aboutLinkMedians(err, sub);
   std::vector<size_t> kept;
   for (size_t i = 0; i < sub.size(); ++i)
     if (dev[i] <= std::max(3.0 * at.overall, 0.05)) kept.push_back(i);
   const int n = 3 + static_cast<int>(link_index.size());
   Pose2 fitted = move;
-  Eigen::VectorXd bias = Eigen::VectorXd::Zero(n - 3);
-  for (size_t i : kept) bias[link_index[{sub[i].anchor_id, sub[i].tag_id}]] += err[i];
-  for (const auto& [link, k] : link_index) {
-    const auto count = std::count_if(kept.begin(), kept.end(), [&, link = link](size_t i) {
-      return Link{sub[i].anchor_id, sub[i].tag_id} == link;
-    });
-    bias[k] /= static_cast<double>(std::max<std::ptrdiff_t>(1, count));
+  // Each kept range's bias column, and each link's bias started at its kept ranges' mean error.
+  std::vector<int> column(sub.size());
+  Eigen::VectorXd bias = Eigen::VectorXd::Zero(n - 3), count = Eigen::VectorXd::Zero(n - 3);
+  for (size_t i : kept) {
+    column[i] = link_index[{sub[i].anchor_id, sub[i].tag_id}];
+    bias[column[i]] += err[i], count[column[i]] += 1.0;
   }
+  bias = bias.cwiseQuotient(count.cwiseMax(1.0));
+  Eigen::VectorXd J = Eigen::VectorXd::Zero(n);  // of the predicted range + bias
   for (int iteration = 0; kept.size() > static_cast<size_t>(n) && iteration < 10; ++iteration) {
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
     Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
@@ -262,8 +263,7 @@ Pose2 polishedMove(const std::vector<TagFitSample>& s, Pose2 move) {
       diff -= uwb::tagPosition(sub[i].pose, sub[i].tag_on_robot);
       const double d = diff.norm();
       if (d < 1e-6) continue;
-      const int b = 3 + link_index[{sub[i].anchor_id, sub[i].tag_id}];
-      Eigen::VectorXd J = Eigen::VectorXd::Zero(n);  // of the predicted range + bias
+      const int b = 3 + column[i];
       const Eigen::Vector2d u = diff.head<2>() / d;
       const Eigen::Vector2d turned_a = moved_a - fitted.head<2>();
       J[0] = u.x(), J[1] = u.y(), J[2] = u.dot(Eigen::Vector2d(-turned_a.y(), turned_a.x()));
@@ -271,6 +271,7 @@ Pose2 polishedMove(const std::vector<TagFitSample>& s, Pose2 move) {
       const double r = sub[i].range - d - bias[b - 3];
       H += J * J.transpose();
       g += J * r;
+      J[b] = 0.0;
     }
     const Eigen::VectorXd step = H.ldlt().solve(g);
     if (!step.allFinite()) break;
@@ -285,9 +286,8 @@ Pose2 polishedMove(const std::vector<TagFitSample>& s, Pose2 move) {
 // onto the multilateration fixes. A fix with an NLOS range among three can sit metres off with
 // no residual to show it, so first the motion most fixes agree with (within 0.5 m, from pairs of
 // fixes drawn with a fixed seed), Procrustes over those; then, since an anchor's bias moves its
-// fixes, the motion polished on the ranges themselves (least overall departure, a pattern
-// search down to 5 mm and 0.05 deg on at most 2000 ranges). Nothing with fewer than 10 fixes or
-// a quarter of them agreeing.
+// fixes, the motion polished on the ranges themselves (polishedMove). Nothing with fewer than 10
+// fixes or a quarter of them agreeing.
 std::optional<Pose2> frameFromFixes(std::vector<TagFitSample> s) {
   std::sort(s.begin(), s.end(), [](const TagFitSample& a, const TagFitSample& b) {
     return std::tie(a.tag_id, a.t) < std::tie(b.tag_id, b.t);
