@@ -11,6 +11,7 @@
 #include "uwbloc/dataset/csv_import.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/librsf_import.hpp"
+#include "uwbloc/dataset/range_geometry.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/runner.hpp"
 #include "uwbloc/uwb/range_model.hpp"
@@ -460,6 +461,131 @@ TEST(CsvImport, WarnsWhenTheReferenceIsInAnotherFrameWithOneAnchorAtATime) {
   expectTheFrameStated(importCircle(dir, "moved1", test::kFourAnchors, frame, true), frame,
                        "ranges");
   expectNoWarningOnTheRightData(dir, true);
+}
+
+// The triangle inequality on two ranges of one tag, by hand: anchors 10 m apart; ranges of 4 m
+// and 4 m taken together fall short (8 + 0.5 < 10); 4.8 and 4.8 do not (9.6 + 0.5 > 10); 4 and
+// 4.5 and 4.5 do (9 + 0.5 < 10), but not taken 0.4 s apart (the tag may have moved 1.2 m:
+// 9 + 1.7 > 10); 0.6 s apart they are no pair. Ranges of 9.6 and 0.9 m are long (8.7 > 5.5) with
+// the anchors read 5 m apart.
+TEST(RangeGeometry, PairsOfRangesAgainstTheAnchorsDistanceApart) {
+  const std::vector<uwb::Anchor> anchors = {{1, {0, 0, 1}}, {2, {6, 8, 1}}};
+  const auto pairs = [&](std::vector<std::tuple<double, int, double>> ranges, double scale) {
+    std::vector<loc::Event> events;
+    for (const auto& [t, a, r] : ranges) {
+      uwb::Range m;
+      m.t = t, m.anchor_id = a, m.range = r;
+      events.emplace_back(m);
+    }
+    return data::checkRangePairs(events, anchors, scale);
+  };
+  auto p = pairs({{0.0, 1, 4.0}, {0.0, 2, 4.0}}, 1.0);
+  EXPECT_EQ(p.pairs, 1);
+  EXPECT_EQ(p.short_pairs, 1);
+  EXPECT_DOUBLE_EQ(p.median_shortfall, 2.0);
+  EXPECT_EQ(p.per_anchor.at(1), std::make_pair(1L, 1L));
+  EXPECT_EQ(pairs({{0.0, 1, 4.8}, {0.0, 2, 4.8}}, 1.0).short_pairs, 0);
+  EXPECT_EQ(pairs({{0.0, 1, 4.5}, {0.0, 2, 4.5}}, 1.0).short_pairs, 1);
+  p = pairs({{0.0, 1, 4.5}, {0.4, 2, 4.5}}, 1.0);
+  EXPECT_EQ(p.pairs, 1);
+  EXPECT_EQ(p.short_pairs, 0);
+  EXPECT_EQ(pairs({{0.0, 1, 4.0}, {0.6, 2, 4.0}}, 1.0).pairs, 0);
+  p = pairs({{0.0, 1, 9.6}, {0.0, 2, 0.9}}, 0.5);
+  EXPECT_EQ(p.long_pairs, 1);
+  EXPECT_EQ(p.short_pairs, 0);
+  EXPECT_EQ(pairs({{0.0, 1, 9.6}, {0.0, 2, 0.9}}, 1.0).long_pairs, 0);
+}
+
+namespace {
+std::string geometryWarning(const data::Dataset& ds) {
+  for (const auto& w : ds.warnings)
+    if (w.find("cannot be distances") != std::string::npos) return w;
+  return std::string();
+}
+}  // namespace
+
+// Anchors written in millimetres or feet beside ranges in metres: no tag position gives the
+// ranges (two of them together fall short of their anchors' distance apart), so the import reads
+// the anchors in the one unit that fits, loudly, and the recording scores as the one in metres.
+// Asked to take them as metres, it does, and loading names the unit that would fit. One anchor
+// written 10 times too far (a typo): loading names it. Ranges and anchors both in millimetres
+// (a median range of kilometres, among anchors as far apart) are refused, naming the options,
+// and read with them. The right data: none of these warnings.
+TEST(CsvImport, AnchorsInAnotherUnitOrPlaceThanTheRanges) {
+  const auto dir = test::scratchDir();
+  const auto [ranges, ref] = test::driveACircle(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  const auto import = [&](const std::string& name, const std::string& anchors,
+                          const std::string& range_text, const std::string& anchor_unit = "auto",
+                          const std::string& range_unit = "auto") {
+    data::CsvImportRequest r;
+    r.ranges = test::writeText(dir / (name + "_r.csv"), range_text);
+    r.anchors = test::writeText(dir / (name + "_a.csv"), anchors);
+    r.reference = test::writeText(dir / (name + "_ref.csv"), ref);
+    r.anchor_unit = anchor_unit;
+    r.range_unit = range_unit;
+    return data::importCsv(r, (dir / name).string());
+  };
+  const auto warned = [](const data::ImportSummary& s, const std::string& what) {
+    for (const auto& n : s.notes)
+      if (n.find("WARNING") != std::string::npos && n.find(what) != std::string::npos) return true;
+    return false;
+  };
+  const auto expectMetres = [](const data::Dataset& ds) {
+    ASSERT_EQ(ds.anchors.size(), 4u);
+    EXPECT_NEAR(ds.anchors[1].position.x(), 5.0, 1e-9);
+    EXPECT_NEAR(ds.anchors[1].position.z(), 2.2, 1e-9);
+    EXPECT_EQ(geometryWarning(ds), "");
+    EXPECT_LT(eval::evaluateMethod(ds, "uwb-gn", 1, 1).metrics.rmse_2d, 0.2);
+  };
+  const std::string mm =
+      "1,-4000,-4000,400\n2,5000,-4000,2200\n3,5000,5000,1500\n4,-4000,5000,2600\n";
+  const auto in_mm = import("mm", mm, ranges);
+  EXPECT_TRUE(warned(in_mm, "anchors read as millimetres"));
+  expectMetres(data::loadDataset(in_mm.manifest, ""));
+  const std::string ft =
+      "1,-13.12336,-13.12336,1.31234\n2,16.4042,-13.12336,7.21785\n3,16.4042,16.4042,4.92126\n"
+      "4,-13.12336,16.4042,8.53018\n";
+  const auto in_ft = import("ft", ft, ranges);
+  EXPECT_TRUE(warned(in_ft, "anchors read as feet"));
+  {
+    const auto ds = data::loadDataset(in_ft.manifest, "");
+    EXPECT_NEAR(ds.anchors[1].position.x(), 5.0, 1e-5);
+    EXPECT_EQ(geometryWarning(ds), "");
+  }
+  const auto as_metres = import("as_m", mm, ranges, "m");
+  EXPECT_FALSE(warned(as_metres, "anchors read as"));
+  const std::string w = geometryWarning(data::loadDataset(as_metres.manifest, ""));
+  std::printf("[ GEOMETRY ] %s\n", w.c_str());
+  EXPECT_NE(w.find("read in millimetres, the anchors would fit them"), std::string::npos) << w;
+
+  const auto typo = import("typo", "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-40,5,2.6\n", ranges);
+  EXPECT_FALSE(warned(typo, "anchors read as"));  // read in feet, it would fit
+  const std::string tw = geometryWarning(data::loadDataset(typo.manifest, ""));
+  std::printf("[ GEOMETRY ] %s\n", tw.c_str());
+  EXPECT_NE(tw.find("the ranges of anchor 4 cannot"), std::string::npos) << tw;
+  EXPECT_NE(tw.find("Check anchor 4's coordinates"), std::string::npos) << tw;
+
+  std::string ranges_mm;
+  {
+    std::istringstream in(ranges);
+    std::string line;
+    std::getline(in, line);
+    ranges_mm = line + "\n";
+    while (std::getline(in, line)) {
+      const auto c = line.rfind(',');
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.3f", 1000.0 * std::stod(line.substr(c + 1)));
+      ranges_mm += line.substr(0, c + 1) + buf + "\n";
+    }
+  }
+  test::expectErrorMentions<data::InputError>(
+      [&] { import("both_mm", mm, ranges_mm); },
+      {"both_mm_r.csv", "beyond any UWB link", "--range-unit", "--anchor-unit"});
+  expectMetres(data::loadDataset(import("both_mm", mm, ranges_mm, "mm", "mm").manifest, ""));
+
+  const auto right = import("right", test::kFourAnchors, ranges);
+  for (const auto& n : right.notes) EXPECT_EQ(n.find("WARNING"), std::string::npos) << n;
+  expectMetres(data::loadDataset(right.manifest, ""));
 }
 
 // A spreadsheet's export: a UTF-8 byte-order mark, semicolons, decimal commas, CRLF line ends

@@ -98,6 +98,13 @@ void ImportCommand::declare(CLI::App& parser) {
                   "neither or both do)")
       ->check(CLI::IsMember({"auto", "m", "cm", "mm"}))
       ->capture_default_str();
+  cmd->add_option("--anchor-unit", csv_.anchor_unit,
+                  "csv: the unit of the anchors' coordinates; auto: metres, unless the ranges "
+                  "cannot be distances to anchors that far apart (two ranges of one tag falling "
+                  "short of their anchors' distance apart) and one of mm, cm, inches and feet "
+                  "alone makes them fit, which is taken (with a warning)")
+      ->check(CLI::IsMember({"auto", "m", "cm", "mm"}))
+      ->capture_default_str();
   cmd->add_option("--imu", csv_.imu, "csv: IMU 't,gx,gy,gz,ax,ay,az' [rad/s, m/s^2]");
   cmd->add_option("--reference", csv_.reference,
                   "csv: reference poses, TUM or 't,x,y[,theta]' (without theta no heading is "

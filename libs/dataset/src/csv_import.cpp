@@ -9,6 +9,7 @@
 #include "odometry_poses.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/range_geometry.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/dataset/text_io.hpp"
@@ -96,21 +97,41 @@ double timeScale(const Table& table, size_t col, const std::string& unit, const 
   return 1.0;  // beyond nanoseconds too: refused row by row
 }
 
-// Metres per unit of the ranges `values` of `path` (CsvImportRequest::range_unit).
-double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anchor>& anchors,
-                  const std::string& unit, const std::string& path, ImportSummary& s) {
+// [m] Beyond any UWB link's reach (a few hundred metres at most, line of sight, lowest data
+// rate): a median range longer is in another unit.
+constexpr double kFarthestRange = 1000.0;
+
+// Metres per unit of a length unit's name (m, cm, mm); throws InputError naming `option` for
+// another.
+double metresPerUnit(const std::string& unit, const char* option) {
   if (unit == "m") return 1.0;
   if (unit == "cm") return 1e-2;
   if (unit == "mm") return 1e-3;
-  if (unit != "auto")
-    throw InputError("import csv: --range-unit must be auto, m, cm or mm, got '" + unit + "'");
+  throw InputError(std::string("import csv: ") + option + " must be auto, m, cm or mm, got '" +
+                   unit + "'");
+}
+
+// Metres per unit of the ranges `values` of `path` (CsvImportRequest::range_unit).
+double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anchor>& anchors,
+                  const std::string& unit, const std::string& path, ImportSummary& s) {
+  if (unit != "auto") return metresPerUnit(unit, "--range-unit");
   if (values.empty()) return 1.0;
   double spacing = 0.0;
   for (size_t i = 0; i < anchors.size(); ++i)
     for (size_t j = i + 1; j < anchors.size(); ++j)
       spacing = std::max(spacing, (anchors[i].position - anchors[j].position).norm());
   const double median = loc::medianOf(values);
-  if (!(median > std::max(10.0 * spacing, 100.0))) return 1.0;
+  char buf[400];
+  if (!(median > std::max(10.0 * spacing, 100.0))) {
+    if (!(median > kFarthestRange)) return 1.0;
+    // Among anchors as far apart, but beyond any UWB link: both in millimetres or centimetres.
+    std::snprintf(buf, sizeof buf,
+                  "the ranges' median, %.6g, is beyond any UWB link's reach as metres (%.0f m), "
+                  "and the anchors span %.6g: if both are in millimetres or centimetres, give "
+                  "--range-unit and --anchor-unit (m takes them as written)",
+                  median, kFarthestRange, spacing);
+    throwInputError(path, 0, buf);
+  }
   // The readings that put the tag among the anchors: a median range between a tenth of and 3
   // times their largest spacing.
   std::vector<std::pair<const char*, double>> fits;
@@ -118,7 +139,6 @@ double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anch
        {std::pair<const char*, double>{"centimetres", 1e-2}, {"millimetres", 1e-3}})
     if (median * scale >= 0.1 * spacing && median * scale <= std::max(3.0 * spacing, 3.0))
       fits.emplace_back(name, scale);
-  char buf[400];
   if (fits.size() != 1) {
     std::snprintf(buf, sizeof buf,
                   "the ranges' median, %.6g, is over 10 times the anchors' largest spacing "
@@ -521,7 +541,11 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   if (req.anchors.empty()) throw InputError("import csv: --anchors is required");
   ImportSummary s;
   std::vector<loc::Event> events;
-  const auto anchors = loadAnchorsCsv(req.anchors);
+  auto anchors = loadAnchorsCsv(req.anchors);
+  const auto scaleAnchors = [&](double scale) {
+    for (auto& a : anchors) a.position *= scale;
+  };
+  if (req.anchor_unit != "auto") scaleAnchors(metresPerUnit(req.anchor_unit, "--anchor-unit"));
   std::vector<TimedPose> reference;
   bool heading = true;
   if (!req.reference.empty()) reference = readReference(req, s, &heading);
@@ -535,6 +559,15 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
                     "no usable range" + (why.empty() ? std::string() : " (skipped: " + why + ")") +
                         "; --time-unit and --range-unit set the units");
   }
+  if (req.anchor_unit == "auto")
+    if (const auto unit = anchorUnitFromRanges(events, anchors)) {
+      scaleAnchors(unit->second);
+      s.notes.push_back("WARNING: " + req.anchors + ": anchors read as " + unit->first +
+                        ": in metres the ranges could not be distances to them (two ranges of "
+                        "one tag, taken together, fall short of their anchors' distance apart), "
+                        "in " +
+                        unit->first + " they can (--anchor-unit sets the unit)");
+    }
   if (!req.odometry.empty()) readOdometry(req, reference, events, s);
   if (!req.imu.empty()) readImu(req, events, s);
   if (!req.scans.empty()) s.scans = readScans(req, events, s);

@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/range_geometry.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/dataset/text_io.hpp"
@@ -156,6 +157,8 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
   if (auto w = referenceBeyondRecordingWarning(ds)) ds.warnings.push_back(*w);
+  if (auto w = rangeGeometryWarning(ds.events, ds.anchors))
+    ds.warnings.push_back(ds.manifest.rawlog + ": " + *w);
   if (auto w = rangeReferenceWarning(ds)) ds.warnings.push_back(*w);
   return ds;
 }
