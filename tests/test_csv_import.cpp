@@ -331,6 +331,49 @@ TEST(CsvImport, WarnsWhenTheReferencesClockLags) {
   text.replace(text.find("[dataset]"), 9, "[dataset]\n" + key + std::to_string(offset));
   test::writeText(manifest, text);
   EXPECT_EQ(lagging(), "");
+  EXPECT_EQ(w.find("Or the tag sits"), std::string::npos) << w;  // its rate varies: a lag
+}
+
+// A tag 0.3 m ahead of the reference point on a robot driving up and down a line at 1 m/s: a lag
+// of the reference's clock explains the ranges, and so does the lever arm; the warning gives
+// both, and the lever arm stated, the ranges agree.
+TEST(CsvImport, SaysALagAndALeverArmAlongTheTravelReadAlike) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d at[] = {{-4, -4, 0.4}, {5, -4, 2.2}, {5, 5, 1.5}, {-4, 5, 2.6}};
+  const Eigen::Vector3d tag(0.3, 0.0, 0.8);
+  std::string ranges = "t,anchor_id,range\n", ref = "t,x,y,theta\n";
+  char buf[160];
+  for (int k = 0; k < 400; ++k) {
+    const double t = 10.0 + 0.1 * k, s = std::fmod(0.1 * k, 12.0);  // 6 m out, 6 m back
+    const Eigen::Vector3d pose(s < 6.0 ? s - 3.0 : 9.0 - s, 0.5, s < 6.0 ? 0.0 : M_PI);
+    for (int i = 0; i < 4; ++i) {
+      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", t, i + 1,
+                    (uwb::tagPosition(pose, tag) - at[i]).norm());
+      ranges += buf;
+    }
+    std::snprintf(buf, sizeof buf, "%.2f,%.4f,%.4f,%.6f\n", t, pose.x(), pose.y(), pose.z());
+    ref += buf;
+  }
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / "r.csv", ranges);
+  r.anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
+  r.reference = test::writeText(dir / "ref.csv", ref);
+  r.tag_height = 0.8;
+  const std::string manifest = data::importCsv(r, (dir / "out").string()).manifest;
+  const auto clock = [&] {
+    for (const auto& w : data::loadDataset(manifest, "").warnings)
+      if (w.find("clock") != std::string::npos) return w;
+    return std::string();
+  };
+  const std::string w = clock();
+  std::printf("[ CLOCK    ] %s\n", w.c_str());
+  EXPECT_NE(w.find("gt_time_offset = -0.300"), std::string::npos) << w;
+  EXPECT_NE(w.find("Or the tag sits at (0.30, 0.00) m on the robot"), std::string::npos) << w;
+  EXPECT_NE(w.find("lever_arm_x = 0.30 and lever_arm_y = 0.00"), std::string::npos) << w;
+  std::string text = test::readText(manifest);
+  text.replace(text.find("[tag]"), 5, "[tag]\nlever_arm_x = 0.30\nlever_arm_y = 0.00");
+  test::writeText(manifest, text);
+  EXPECT_EQ(clock(), "");
 }
 
 namespace {

@@ -432,6 +432,29 @@ ClockLag clockLag(const Dataset& ds) {
   return c;
 }
 
+// A robot that drives forward sees a lag of the reference's clock and a tag behind (or ahead of)
+// the reference point alike. When the tag's place on the robot (fitTagOnRobot: the reference
+// must carry the heading, and the ranges come from one tag) explains the ranges about as well as
+// the lag, `departure` (within 1 cm), the sentence that says so; nothing otherwise.
+std::string leverArmAlike(const Dataset& ds, const std::vector<TagFitSample>& s, double departure) {
+  if (!ds.manifest.reference_heading) return std::string();
+  for (const auto& x : s)
+    if (x.tag_id != s.front().tag_id) return std::string();
+  const Eigen::Vector3d given = s.front().tag_on_robot;
+  const TagFit fit = fitTagOnRobot(s, given, true, false);
+  if ((fit.tag - given).head<2>().norm() < 0.05 || fit.deviation > departure + 0.01)
+    return std::string();
+  char buf[500];
+  std::snprintf(buf, sizeof buf,
+                " Or the tag sits at (%.2f, %.2f) m on the robot, not at (%.2f, %.2f) m, which "
+                "explains the ranges as well (a median %.3f m): along the travel a lag and a "
+                "lever arm read alike, and these ranges cannot tell which it is. If that, state "
+                "it: [tag] lever_arm_x = %.2f and lever_arm_y = %.2f",
+                fit.tag.x(), fit.tag.y(), given.x(), given.y(), fit.deviation, fit.tag.x(),
+                fit.tag.y());
+  return buf;
+}
+
 }  // namespace
 
 std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
@@ -505,10 +528,10 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
     std::snprintf(buf, sizeof buf,
                   "the ranges agree best with the reference's stamps moved by %+.3f s (each "
                   "departs from its link's median error by a median %.3f m there, %.3f m as "
-                  "stamped): the reference's clock is likely offset. If so, state it in the "
-                  "manifest: [dataset] gt_time_offset = %.3f",
+                  "stamped): the reference's clock is likely offset (if so, state it in the "
+                  "manifest: [dataset] gt_time_offset = %.3f).",
                   lag.lag, lag.departure, lag.at_zero, ds.manifest.gt_time_offset + lag.lag);
-    return ds.manifest.rawlog + ": " + buf;
+    return ds.manifest.rawlog + ": " + buf + leverArmAlike(ds, s, lag.departure);
   }
   if (!frame && before.overall <= kUnexplained && bad_links.empty()) return std::nullopt;
   char buf[1200];
