@@ -399,14 +399,19 @@ std::string mirrored(const std::string& reference) {
 }
 
 // A circle drive imported into `dir` with its reference moved by `frame` (then mirrored when
-// `mirror`): its manifest. Its ranges one anchor at a time when `one_at_a_time`.
+// `mirror`): its manifest. Its ranges one anchor at a time when `one_at_a_time`; with
+// `odometry`, the robot's poses (never mirrored) as its odometry.
 std::string importCircle(const std::filesystem::path& dir, const std::string& name,
                          const std::string& anchors, const Eigen::Vector3d& frame,
-                         bool one_at_a_time, bool mirror = false) {
+                         bool one_at_a_time, bool mirror = false, bool odometry = false) {
   const Eigen::Vector3d tag(0.0, 0.0, 0.8);
   auto [ranges, ref] = test::driveACircle(tag, frame, 0.0, one_at_a_time);
-  if (mirror) ref = mirrored(ref);
   data::CsvImportRequest r;
+  if (odometry) {
+    r.odometry = test::writeText(dir / (name + "_odo.csv"), ref);
+    r.odometry_kind = "poses";
+  }
+  if (mirror) ref = mirrored(ref);
   r.ranges = test::writeText(dir / (name + "_r.csv"), ranges);
   r.anchors = test::writeText(dir / (name + "_a.csv"), anchors);
   r.reference = test::writeText(dir / (name + "_ref.csv"), ref);
@@ -494,6 +499,50 @@ TEST(CsvImport, WarnsWhenTheReferenceIsMirrored) {
                        "multilateration fixes", true);
   expectTheFrameStated(importCircle(dir, "mirrored1", test::kFourAnchors, frame, true, true), frame,
                        "ranges", true);
+}
+
+// Which of the two is left-handed, told by the odometry (right-handed, as robots report it):
+// with the reference mirrored it turns against the reference, and the warning says to mirror the
+// reference back; with the anchors mirrored (their y negated) it turns with the reference, and
+// the warning says to negate the anchors' y and gives the frame that then holds. Either fix
+// stated, the ranges agree. Without odometry the warning says the ranges cannot tell.
+TEST(CsvImport, TheOdometryTellsWhetherTheReferenceOrTheAnchorsAreMirrored) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d frame(1.0, 2.0, 60.0 * M_PI / 180.0);
+  const std::string reference_mirrored =
+      importCircle(dir, "ref", test::kFourAnchors, frame, false, true, true);
+  const std::string rw = disagreement(data::loadDataset(reference_mirrored, ""));
+  EXPECT_NE(rw.find("the reference left-handed"), std::string::npos) << rw;
+  EXPECT_NE(rw.find("write the reference with its y and heading negated"), std::string::npos);
+  expectTheFrameStated(reference_mirrored, frame, "multilateration fixes", true);
+
+  const std::string anchors_mirrored =
+      importCircle(dir, "anchors", "1,-4,4,0.4\n2,5,4,2.2\n3,5,-5,1.5\n4,-4,-5,2.6\n", frame, false,
+                   false, true);
+  const std::string w = disagreement(data::loadDataset(anchors_mirrored, ""));
+  std::printf("[ FRAME    ] %s\n", w.c_str());
+  EXPECT_NE(w.find("the anchors left-handed: the odometry turns with the reference"),
+            std::string::npos)
+      << w;
+  EXPECT_NE(w.find("write the anchors with their y negated"), std::string::npos) << w;
+  const std::string key = "gt_origin_in_anchor_frame = ";
+  ASSERT_NE(w.find(key), std::string::npos) << w;
+  double x = 0, y = 0, yaw_deg = 0;
+  std::istringstream(w.substr(w.find(key) + key.size())) >> x >> y >> yaw_deg;
+  const Eigen::Vector3d inverse = relativePose(frame, Eigen::Vector3d::Zero());
+  EXPECT_NEAR(x, inverse.x(), 0.05);
+  EXPECT_NEAR(y, inverse.y(), 0.05);
+  EXPECT_NEAR(yaw_deg, inverse.z() * 180.0 / M_PI, 0.5);
+  const auto folder = std::filesystem::path(anchors_mirrored).parent_path();
+  test::writeText(folder / "anchors.csv", std::string("id,x,y,z\n") + test::kFourAnchors);
+  std::string text = test::readText(anchors_mirrored);
+  text.replace(text.find("[anchors]"), 9, "[anchors]\n" + key + w.substr(w.find(key) + key.size()));
+  test::writeText(anchors_mirrored, text);
+  EXPECT_EQ(disagreement(data::loadDataset(anchors_mirrored, "")), "");
+
+  const std::string no_odometry = disagreement(
+      data::loadDataset(importCircle(dir, "none", test::kFourAnchors, frame, false, true), ""));
+  EXPECT_NE(no_odometry.find("the ranges cannot tell which"), std::string::npos) << no_odometry;
 }
 
 // Ranges that come one anchor at a time give no multilateration fix; the frame is found from the

@@ -432,6 +432,28 @@ ClockLag clockLag(const Dataset& ds) {
   return c;
 }
 
+// How the odometry turns beside the reference's heading: the correlation, over the odometry's
+// increments, of each one's turn with the reference's change of heading over its interval (+1:
+// the same way, -1: mirrored). Nothing without a reference heading, or with under 20 increments
+// beside it or 0.5 rad of turning in all.
+std::optional<double> odometryTurnAgreement(const Dataset& ds) {
+  if (!ds.manifest.reference_heading) return std::nullopt;
+  double from = NAN, ab = 0.0, aa = 0.0, bb = 0.0, turned = 0.0;
+  long n = 0;
+  for (const auto& e : ds.events) {
+    const auto* odo = std::get_if<loc::OdometryIncrement>(&e);
+    if (!odo) continue;
+    const auto start = interpolateGroundTruth(ds.ground_truth, from, 1.0);
+    const auto end = interpolateGroundTruth(ds.ground_truth, odo->t, 1.0);
+    from = odo->t;
+    if (!start || !end || !std::isfinite(odo->delta.z())) continue;
+    const double a = odo->delta.z(), b = loc::wrapAngle(end->z() - start->z());
+    ab += a * b, aa += a * a, bb += b * b, turned += std::abs(a), ++n;
+  }
+  if (n < 20 || turned < 0.5 || !(aa > 0.0 && bb > 0.0)) return std::nullopt;
+  return ab / std::sqrt(aa * bb);
+}
+
 // A robot that drives forward sees a lag of the reference's clock and a tag behind (or ahead of)
 // the reference point alike. When the tag's place on the robot (fitTagOnRobot: the reference
 // must carry the heading, and the ranges come from one tag) explains the ranges about as well as
@@ -514,11 +536,15 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
   if (before.overall > kLooksRight) {
     frame = frameOf(s, false);
     // A reference in a left-handed frame (a y-up motion capture's x and z, say): its y and
-    // heading negated.
-    if (!frame) {
+    // heading negated. Also tried when a rigid motion leaves more than kLooksRight, and taken
+    // when it leaves under half as much: three anchors mirrored can be near a turn of
+    // themselves (the MRPT demo's, 82 deg, left 0.38 m; mirrored, 0.07 m).
+    if (!frame || frame->after > kLooksRight) {
       auto m = s;
       for (auto& x : m) x.pose = Pose2(x.pose.x(), -x.pose.y(), -x.pose.z());
-      frame = frameOf(m, true);
+      if (auto mirrored = frameOf(m, true);
+          mirrored && (!frame || mirrored->after < 0.5 * frame->after))
+        frame = mirrored;
     }
   }
   // Where both a lag and a frame would explain it, the one that explains more.
@@ -543,8 +569,26 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
     // The anchors were moved by the manifest's frame F: the reference then goes to the anchors'
     // frame by F T (T after the mirror when mirrored).
     const Pose2& T = frame->T;
-    const Pose2 origin =
-        composePose(ds.manifest.gt_origin_in_anchor_frame.value_or(Pose2::Zero()), T);
+    Pose2 origin = composePose(ds.manifest.gt_origin_in_anchor_frame.value_or(Pose2::Zero()), T);
+    // Which of the two is left-handed: the odometry (taken right-handed, as robots report it)
+    // turns against a mirrored reference, and with the reference when the anchors are mirrored.
+    const auto agreement = frame->mirrored ? odometryTurnAgreement(ds) : std::nullopt;
+    const bool anchors_mirrored = agreement && *agreement > 0.5;
+    const bool reference_mirrored = agreement && *agreement < -0.5;
+    const char* which =
+        !frame->mirrored     ? ""
+        : anchors_mirrored   ? ", the anchors left-handed: the odometry turns with the reference"
+        : reference_mirrored ? ", the reference left-handed (a y-up motion capture's x and z, "
+                               "say): the odometry turns against it"
+                             : ", one of the two left-handed (a y-up motion capture's x and z, "
+                               "say; the ranges cannot tell which)";
+    const char* fix = !frame->mirrored   ? ""
+                      : anchors_mirrored ? "write the anchors with their y negated and "
+                      : reference_mirrored
+                          ? "write the reference with its y and heading negated and "
+                          : "and it is the reference, write it with its y and heading negated and ";
+    // The anchors' y negated: the reference goes to their frame by M (F T) M, M the mirror.
+    if (anchors_mirrored) origin = Pose2(origin.x(), -origin.y(), -origin.z());
     std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n),
                   "The %s fit the reference%s after one rigid motion (%.1f deg, "
                   "%.2f m), which brings it to %.2f m: the reference is likely in another frame "
@@ -552,14 +596,8 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
                   "gt_origin_in_anchor_frame = %.3f %.3f %.2f",
                   frame->from_fixes ? "multilateration fixes" : "ranges",
                   frame->mirrored ? " mirrored (its y and heading negated)" : "",
-                  T.z() * 180.0 / M_PI, T.head<2>().norm(), frame->after,
-                  frame->mirrored ? ", one of the two left-handed (a y-up motion capture's x and "
-                                    "z, say; the ranges cannot tell which)"
-                                  : "",
-                  frame->mirrored ? "and it is the reference, write it with its y and heading "
-                                    "negated and "
-                                  : "",
-                  origin.x(), origin.y(), origin.z() * 180.0 / M_PI);
+                  T.z() * 180.0 / M_PI, T.head<2>().norm(), frame->after, which, fix, origin.x(),
+                  origin.y(), origin.z() * 180.0 / M_PI);
   } else {
     std::snprintf(
         buf + n, sizeof buf - static_cast<size_t>(n),
