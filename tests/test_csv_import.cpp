@@ -77,6 +77,28 @@ void driveAmongThreeAnchors(double t0, Range&& range, Pose&& pose) {
   }
 }
 
+// A drive's `ranges` and `ref` (CSV text) imported into dir/out among the four anchors, the tag
+// at `tag` (or only at its height when `height_only`): the manifest.
+std::string importDrive(const std::filesystem::path& dir, const std::string& ranges,
+                        const std::string& ref, const Eigen::Vector3d& tag, bool height_only) {
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / "r.csv", ranges);
+  r.anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
+  r.reference = test::writeText(dir / "ref.csv", ref);
+  if (height_only)
+    r.tag_height = tag.z();
+  else
+    r.tags[0] = tag;
+  return data::importCsv(r, (dir / "out").string()).manifest;
+}
+
+// The warning that loading `manifest` gives about `what`, or "".
+std::string warningAbout(const std::string& manifest, const std::string& what) {
+  for (const auto& w : data::loadDataset(manifest, "").warnings)
+    if (w.find(what) != std::string::npos) return w;
+  return std::string();
+}
+
 }  // namespace
 
 TEST(CsvImport, ARoundTripScoresIdentically) {
@@ -310,18 +332,8 @@ TEST(CsvImport, WarnsWhenTheReferencesClockLags) {
   const auto dir = test::scratchDir();
   const Eigen::Vector3d tag(0.0, 0.0, 0.8);
   const auto [ranges, ref] = test::driveACircle(tag, Eigen::Vector3d::Zero(), 0.3);
-  data::CsvImportRequest r;
-  r.ranges = test::writeText(dir / "r.csv", ranges);
-  r.anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
-  r.reference = test::writeText(dir / "ref.csv", ref);
-  r.tags[0] = tag;
-  const std::string manifest = data::importCsv(r, (dir / "out").string()).manifest;
-  const auto lagging = [&] {
-    for (const auto& w : data::loadDataset(manifest, "").warnings)
-      if (w.find("clock") != std::string::npos) return w;
-    return std::string();
-  };
-  const std::string w = lagging();
+  const std::string manifest = importDrive(dir, ranges, ref, tag, false);
+  const std::string w = warningAbout(manifest, "clock");
   std::printf("[ CLOCK    ] %s\n", w.c_str());
   const std::string key = "gt_time_offset = ";
   ASSERT_NE(w.find(key), std::string::npos) << w;
@@ -330,7 +342,7 @@ TEST(CsvImport, WarnsWhenTheReferencesClockLags) {
   std::string text = test::readText(manifest);
   text.replace(text.find("[dataset]"), 9, "[dataset]\n" + key + std::to_string(offset));
   test::writeText(manifest, text);
-  EXPECT_EQ(lagging(), "");
+  EXPECT_EQ(warningAbout(manifest, "clock"), "");
   EXPECT_EQ(w.find("Or the tag sits"), std::string::npos) << w;  // its rate varies: a lag
 }
 
@@ -354,18 +366,8 @@ TEST(CsvImport, SaysALagAndALeverArmAlongTheTravelReadAlike) {
     std::snprintf(buf, sizeof buf, "%.2f,%.4f,%.4f,%.6f\n", t, pose.x(), pose.y(), pose.z());
     ref += buf;
   }
-  data::CsvImportRequest r;
-  r.ranges = test::writeText(dir / "r.csv", ranges);
-  r.anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
-  r.reference = test::writeText(dir / "ref.csv", ref);
-  r.tag_height = 0.8;
-  const std::string manifest = data::importCsv(r, (dir / "out").string()).manifest;
-  const auto clock = [&] {
-    for (const auto& w : data::loadDataset(manifest, "").warnings)
-      if (w.find("clock") != std::string::npos) return w;
-    return std::string();
-  };
-  const std::string w = clock();
+  const std::string manifest = importDrive(dir, ranges, ref, tag, true);
+  const std::string w = warningAbout(manifest, "clock");
   std::printf("[ CLOCK    ] %s\n", w.c_str());
   EXPECT_NE(w.find("gt_time_offset = -0.300"), std::string::npos) << w;
   EXPECT_NE(w.find("Or the tag sits at (0.30, 0.00) m on the robot"), std::string::npos) << w;
@@ -373,7 +375,7 @@ TEST(CsvImport, SaysALagAndALeverArmAlongTheTravelReadAlike) {
   std::string text = test::readText(manifest);
   text.replace(text.find("[tag]"), 5, "[tag]\nlever_arm_x = 0.30\nlever_arm_y = 0.00");
   test::writeText(manifest, text);
-  EXPECT_EQ(clock(), "");
+  EXPECT_EQ(warningAbout(manifest, "clock"), "");
 }
 
 namespace {
@@ -425,20 +427,14 @@ std::string disagreement(const data::Dataset& ds) {
   return std::string();
 }
 
-// The warning on a reference moved by `frame` (and mirrored when `mirror`) states the frame's
-// inverse, and once the manifest states it (and the reference is mirrored back) the ranges agree
-// with the reference. The manifest with it in.
-std::string expectTheFrameStated(const std::string& manifest, const Eigen::Vector3d& frame,
-                                 const std::string& fit_by, bool mirror = false) {
-  const std::string w = disagreement(data::loadDataset(manifest, ""));
-  std::printf("[ FRAME    ] %s\n", w.c_str());
-  EXPECT_NE(w.find("The " + fit_by + " fit the reference" + (mirror ? " mirrored" : " after")),
-            std::string::npos)
-      << w;
+// The frame line of warning `w` is the inverse of `frame` (the reference's frame seen from the
+// anchors'), within 0.05 m and 0.5 deg; written into `manifest`. False when `w` has none.
+bool stateTheFrame(const std::string& manifest, const std::string& w,
+                   const Eigen::Vector3d& frame) {
   const std::string key = "gt_origin_in_anchor_frame = ";
   if (w.find(key) == std::string::npos) {
     ADD_FAILURE() << w;
-    return manifest;
+    return false;
   }
   double x = 0, y = 0, yaw_deg = 0;
   std::istringstream(w.substr(w.find(key) + key.size())) >> x >> y >> yaw_deg;
@@ -449,6 +445,20 @@ std::string expectTheFrameStated(const std::string& manifest, const Eigen::Vecto
   std::string text = test::readText(manifest);
   text.replace(text.find("[anchors]"), 9, "[anchors]\n" + key + w.substr(w.find(key) + key.size()));
   test::writeText(manifest, text);
+  return true;
+}
+
+// The warning on a reference moved by `frame` (and mirrored when `mirror`) states the frame's
+// inverse, and once the manifest states it (and the reference is mirrored back) the ranges agree
+// with the reference. The manifest with it in.
+std::string expectTheFrameStated(const std::string& manifest, const Eigen::Vector3d& frame,
+                                 const std::string& fit_by, bool mirror = false) {
+  const std::string w = disagreement(data::loadDataset(manifest, ""));
+  std::printf("[ FRAME    ] %s\n", w.c_str());
+  EXPECT_NE(w.find("The " + fit_by + " fit the reference" + (mirror ? " mirrored" : " after")),
+            std::string::npos)
+      << w;
+  if (!stateTheFrame(manifest, w, frame)) return manifest;
   if (mirror) {
     const auto reference = std::filesystem::path(manifest).parent_path() / "ground_truth.tum";
     test::writeText(reference, mirrored(test::readText(reference)));
@@ -525,19 +535,9 @@ TEST(CsvImport, TheOdometryTellsWhetherTheReferenceOrTheAnchorsAreMirrored) {
             std::string::npos)
       << w;
   EXPECT_NE(w.find("write the anchors with their y negated"), std::string::npos) << w;
-  const std::string key = "gt_origin_in_anchor_frame = ";
-  ASSERT_NE(w.find(key), std::string::npos) << w;
-  double x = 0, y = 0, yaw_deg = 0;
-  std::istringstream(w.substr(w.find(key) + key.size())) >> x >> y >> yaw_deg;
-  const Eigen::Vector3d inverse = relativePose(frame, Eigen::Vector3d::Zero());
-  EXPECT_NEAR(x, inverse.x(), 0.05);
-  EXPECT_NEAR(y, inverse.y(), 0.05);
-  EXPECT_NEAR(yaw_deg, inverse.z() * 180.0 / M_PI, 0.5);
+  ASSERT_TRUE(stateTheFrame(anchors_mirrored, w, frame));
   const auto folder = std::filesystem::path(anchors_mirrored).parent_path();
   test::writeText(folder / "anchors.csv", std::string("id,x,y,z\n") + test::kFourAnchors);
-  std::string text = test::readText(anchors_mirrored);
-  text.replace(text.find("[anchors]"), 9, "[anchors]\n" + key + w.substr(w.find(key) + key.size()));
-  test::writeText(anchors_mirrored, text);
   EXPECT_EQ(disagreement(data::loadDataset(anchors_mirrored, "")), "");
 
   const std::string no_odometry = disagreement(
