@@ -639,8 +639,8 @@ TEST(CsvImport, AnchorsInAnotherUnitOrPlaceThanTheRanges) {
       "4,-13.12336,16.4042,8.53018\n";
   const auto in_ft = import("ft", ft, ranges);
   EXPECT_TRUE(warned(in_ft, "anchors read as feet"));
-  {
-    const auto ds = data::loadDataset(in_ft.manifest, "");
+  for (const auto& manifest : {in_ft.manifest, import("ft_given", ft, ranges, "ft").manifest}) {
+    const auto ds = data::loadDataset(manifest, "");
     EXPECT_NEAR(ds.anchors[1].position.x(), 5.0, 1e-5);
     EXPECT_EQ(geometryWarning(ds), "");
   }

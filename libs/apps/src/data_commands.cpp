@@ -103,7 +103,7 @@ void ImportCommand::declare(CLI::App& parser) {
                   "cannot be distances to anchors that far apart (two ranges of one tag falling "
                   "short of their anchors' distance apart) and one of mm, cm, inches and feet "
                   "alone makes them fit, which is taken (with a warning)")
-      ->check(CLI::IsMember({"auto", "m", "cm", "mm"}))
+      ->check(CLI::IsMember({"auto", "m", "cm", "mm", "in", "ft"}))
       ->capture_default_str();
   cmd->add_option("--imu", csv_.imu, "csv: IMU 't,gx,gy,gz,ax,ay,az' [rad/s, m/s^2]");
   cmd->add_option("--reference", csv_.reference,

@@ -101,14 +101,15 @@ double timeScale(const Table& table, size_t col, const std::string& unit, const 
 // rate): a median range longer is in another unit.
 constexpr double kFarthestRange = 1000.0;
 
-// Metres per unit of a length unit's name (m, cm, mm); throws InputError naming `option` for
-// another.
+// Metres per unit of a length unit's name (m, cm, mm, in, ft); throws InputError naming
+// `option` for another.
 double metresPerUnit(const std::string& unit, const char* option) {
-  if (unit == "m") return 1.0;
-  if (unit == "cm") return 1e-2;
-  if (unit == "mm") return 1e-3;
-  throw InputError(std::string("import csv: ") + option + " must be auto, m, cm or mm, got '" +
-                   unit + "'");
+  static const std::pair<const char*, double> kUnits[] = {
+      {"m", 1.0}, {"cm", 1e-2}, {"mm", 1e-3}, {"in", 0.0254}, {"ft", 0.3048}};
+  for (const auto& [name, scale] : kUnits)
+    if (unit == name) return scale;
+  throw InputError(std::string("import csv: ") + option +
+                   " must be auto, m, cm, mm, in or ft, got '" + unit + "'");
 }
 
 // Metres per unit of the ranges `values` of `path` (CsvImportRequest::range_unit).

@@ -8,6 +8,7 @@
 #include <map>
 #include <random>
 #include <tuple>
+#include <utility>
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/range_geometry.hpp"
@@ -443,10 +444,11 @@ std::optional<double> odometryTurnAgreement(const Dataset& ds) {
   for (const auto& e : ds.events) {
     const auto* odo = std::get_if<loc::OdometryIncrement>(&e);
     if (!odo) continue;
-    const auto start = interpolateGroundTruth(ds.ground_truth, from, 1.0);
+    const double t0 = std::exchange(from, odo->t);
+    if (!std::isfinite(t0) || !std::isfinite(odo->delta.z())) continue;
+    const auto start = interpolateGroundTruth(ds.ground_truth, t0, 1.0);
     const auto end = interpolateGroundTruth(ds.ground_truth, odo->t, 1.0);
-    from = odo->t;
-    if (!start || !end || !std::isfinite(odo->delta.z())) continue;
+    if (!start || !end) continue;
     const double a = odo->delta.z(), b = loc::wrapAngle(end->z() - start->z());
     ab += a * b, aa += a * a, bb += b * b, turned += std::abs(a), ++n;
   }

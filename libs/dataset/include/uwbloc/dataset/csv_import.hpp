@@ -48,9 +48,9 @@ struct CsvImportRequest {
   /// cm and mm that puts it between a tenth of and 3 times that spacing is taken, loudly (an
   /// error when neither or both do).
   std::string range_unit = "auto";
-  /// The unit of the anchors' coordinates: m, cm or mm; auto: metres, unless the ranges cannot
-  /// be distances to anchors that far apart (range_geometry.hpp: most pairs of ranges from one
-  /// tag fall short of their anchors' distance apart) and one of millimetres, centimetres,
+  /// The unit of the anchors' coordinates: m, cm, mm, in or ft; auto: metres, unless the ranges
+  /// cannot be distances to anchors that far apart (range_geometry.hpp: most pairs of ranges from
+  /// one tag fall short of their anchors' distance apart) and one of millimetres, centimetres,
   /// inches and feet alone makes them fit, which is taken, loudly. A median range beyond any UWB
   /// link (1 km) among anchors as far apart, both in another unit, is an error naming the two
   /// options.
