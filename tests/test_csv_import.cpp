@@ -602,7 +602,8 @@ std::string geometryWarning(const data::Dataset& ds) {
 // Asked to take them as metres, it does, and loading names the unit that would fit. One anchor
 // written 10 times too far (a typo): loading names it. Ranges and anchors both in millimetres
 // (a median range of kilometres, among anchors as far apart) are refused, naming the options,
-// and read with them. The right data: none of these warnings.
+// and read with them; the ranges in millimetres taken as metres are named too long, with the
+// unit that fits. The right data: none of these warnings.
 TEST(CsvImport, AnchorsInAnotherUnitOrPlaceThanTheRanges) {
   const auto dir = test::scratchDir();
   const auto [ranges, ref] = test::driveACircle(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
@@ -674,6 +675,12 @@ TEST(CsvImport, AnchorsInAnotherUnitOrPlaceThanTheRanges) {
       [&] { import("both_mm", mm, ranges_mm); },
       {"both_mm_r.csv", "beyond any UWB link", "--range-unit", "--anchor-unit"});
   expectMetres(data::loadDataset(import("both_mm", mm, ranges_mm, "mm", "mm").manifest, ""));
+  // The ranges in millimetres taken as metres: far too long for the anchors.
+  const std::string lw = geometryWarning(data::loadDataset(
+      import("ranges_mm", test::kFourAnchors, ranges_mm, "auto", "m").manifest, ""));
+  std::printf("[ GEOMETRY ] %s\n", lw.c_str());
+  EXPECT_NE(lw.find("differ by more than the anchors' distance apart"), std::string::npos) << lw;
+  EXPECT_NE(lw.find("read in millimetres, the ranges would fit them"), std::string::npos) << lw;
 
   const auto right = import("right", test::kFourAnchors, ranges);
   for (const auto& n : right.notes) EXPECT_EQ(n.find("WARNING"), std::string::npos) << n;

@@ -46,13 +46,14 @@ std::optional<int> oneAnchorOff(const std::vector<loc::Event>& events,
 }  // namespace
 
 RangePairs checkRangePairs(const std::vector<loc::Event>& events,
-                           const std::vector<uwb::Anchor>& anchors, double anchor_scale) {
+                           const std::vector<uwb::Anchor>& anchors, double anchor_scale,
+                           double range_scale) {
   std::vector<Sample> s;
   for (const auto& e : events)
     if (const auto* r = std::get_if<uwb::Range>(&e); r && std::isfinite(r->t) &&
                                                      std::isfinite(r->range) && r->range > 0.0 &&
                                                      uwb::findAnchor(anchors, r->anchor_id))
-      s.push_back({r->t, r->range, r->tag_id, r->anchor_id});
+      s.push_back({r->t, range_scale * r->range, r->tag_id, r->anchor_id});
   std::stable_sort(s.begin(), s.end(), [](const Sample& a, const Sample& b) { return a.t < b.t; });
   const size_t stride = std::max<size_t>(1, (s.size() + kStartRanges - 1) / kStartRanges);
   // The latest range of each (tag, anchor).
@@ -109,30 +110,50 @@ std::optional<std::pair<std::string, double>> anchorUnitFromRanges(
 std::optional<std::string> rangeGeometryWarning(const std::vector<loc::Event>& events,
                                                 const std::vector<uwb::Anchor>& anchors) {
   const RangePairs p = checkRangePairs(events, anchors);
-  if (p.pairs < 50 || p.shortFraction() < 0.1) return std::nullopt;
+  if (p.pairs < 50) return std::nullopt;
   char buf[600];
-  if (const auto off = oneAnchorOff(events, anchors, p)) {
-    const auto& [n, n_short] = p.per_anchor.at(*off);
-    std::snprintf(buf, sizeof buf,
-                  "the ranges of anchor %d cannot be distances to where it is written: in %ld of "
-                  "its %ld pairs with another anchor's range from the same tag within %.1f s, the "
-                  "two ranges together fall short of the two anchors' distance apart, which no "
-                  "tag position and no NLOS (it lengthens a range) can give, while the other "
-                  "anchors' pairs mostly hold. Check anchor %d's coordinates and id",
-                  *off, n_short, n, kWindow, *off);
-    return std::string(buf);
+  if (p.shortFraction() >= 0.1) {
+    if (const auto off = oneAnchorOff(events, anchors, p)) {
+      const auto& [n, n_short] = p.per_anchor.at(*off);
+      std::snprintf(buf, sizeof buf,
+                    "the ranges of anchor %d cannot be distances to where it is written: in %ld "
+                    "of its %ld pairs with another anchor's range from the same tag within %.1f "
+                    "s, the two ranges together fall short of the two anchors' distance apart, "
+                    "which no tag position and no NLOS (it lengthens a range) can give, while the "
+                    "other anchors' pairs mostly hold. Check anchor %d's coordinates and id",
+                    *off, n_short, n, kWindow, *off);
+      return std::string(buf);
+    }
+    if (p.shortFraction() > 0.5) {
+      std::string unit;
+      if (const auto fit = anchorUnitFromRanges(events, anchors))
+        unit = "; read in " + fit->first + ", the anchors would fit them";
+      std::snprintf(buf, sizeof buf,
+                    "the ranges cannot be distances to the anchors as written: in %ld of %ld "
+                    "pairs of ranges from one tag to two anchors within %.1f s, the two ranges "
+                    "together fall short of the anchors' distance apart (by a median %.2f m), "
+                    "which no tag position and no NLOS (it lengthens a range) can give%s. Check "
+                    "the anchors' coordinates and their unit against the ranges'",
+                    p.short_pairs, p.pairs, kWindow, p.median_shortfall, unit.c_str());
+      return std::string(buf);
+    }
   }
-  if (p.shortFraction() <= 0.5) return std::nullopt;
-  std::string unit;
-  if (const auto fit = anchorUnitFromRanges(events, anchors))
-    unit = "; read in " + fit->first + ", the anchors would fit them";
+  // Ranges far too long for the anchors: NLOS lengthens one range of a pair now and then (at
+  // most 4 % of the pairs on the recordings here), not most of them.
+  if (p.longFraction() <= 0.5) return std::nullopt;
+  std::vector<const char*> fits;
+  for (const auto& [name, range_scale] :
+       {std::pair<const char*, double>{"millimetres", 1e-3}, {"centimetres", 1e-2}})
+    if (checkRangePairs(events, anchors, 1.0, range_scale).consistent()) fits.push_back(name);
+  const std::string unit =
+      fits.size() == 1 ? std::string("; read in ") + fits.front() + ", the ranges would fit them"
+                       : std::string();
   std::snprintf(buf, sizeof buf,
-                "the ranges cannot be distances to the anchors as written: in %ld of %ld pairs "
-                "of ranges from one tag to two anchors within %.1f s, the two ranges together "
-                "fall short of the anchors' distance apart (by a median %.2f m), which no tag "
-                "position and no NLOS (it lengthens a range) can give%s. Check the anchors' "
-                "coordinates and their unit against the ranges'",
-                p.short_pairs, p.pairs, kWindow, p.median_shortfall, unit.c_str());
+                "the ranges cannot be distances to the anchors as written: in %ld of %ld pairs of "
+                "ranges from one tag to two anchors within %.1f s, the two ranges differ by more "
+                "than the anchors' distance apart, which no tag position gives and NLOS only now "
+                "and then%s. Check the ranges' unit and the anchors' coordinates",
+                p.long_pairs, p.pairs, kWindow, unit.c_str());
   return std::string(buf);
 }
 

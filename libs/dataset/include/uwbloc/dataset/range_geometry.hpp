@@ -24,7 +24,8 @@ namespace uwbloc::data {
 /// earlier (each range paired with the latest range of every other anchor; at most about 5000
 /// ranges, evenly spread, start pairs). A pair is short when r_i + r_j + tol < d and long when
 /// |r_i - r_j| > d + tol, tol = 0.5 m + 3 m/s x the time between them (range noise, and a tag
-/// moving at up to 3 m/s); d with every anchor coordinate times `anchor_scale`.
+/// moving at up to 3 m/s); d with every anchor coordinate times `anchor_scale`, each range times
+/// `range_scale`.
 struct RangePairs {
   long pairs = 0, short_pairs = 0, long_pairs = 0;
   std::map<int, std::pair<long, long>> per_anchor;  ///< anchor id -> (pairs, short pairs)
@@ -36,7 +37,8 @@ struct RangePairs {
   bool consistent() const { return shortFraction() < 0.1 && longFraction() < 0.1; }
 };
 RangePairs checkRangePairs(const std::vector<loc::Event>& events,
-                           const std::vector<uwb::Anchor>& anchors, double anchor_scale = 1.0);
+                           const std::vector<uwb::Anchor>& anchors, double anchor_scale = 1.0,
+                           double range_scale = 1.0);
 
 /// The anchors' unit that makes the ranges consistent with them (RangePairs::consistent) when
 /// the anchors as written are not: "millimetres" (scale 1e-3), "centimetres" (1e-2), "inches"
@@ -47,10 +49,11 @@ std::optional<std::pair<std::string, double>> anchorUnitFromRanges(
     const std::vector<loc::Event>& events, const std::vector<uwb::Anchor>& anchors);
 
 /// A one-line explanation when the ranges cannot be distances to the anchors where they are
-/// written, when at least 10 % of at least 50 pairs are short: one anchor whose pairs are over
-/// half short while under a quarter of the others' are (its coordinates or id are wrong), or
-/// else over half of all pairs short (with the anchors' unit that would fit, if one does);
-/// nothing otherwise.
+/// written, with at least 50 pairs: when 10 % of them or more are short, one anchor whose pairs
+/// are over half short while under a quarter of the others' are (its coordinates or id are
+/// wrong), or else over half of all pairs short (with the anchors' unit that would fit, if one
+/// does); over half of them long (with the ranges' unit, millimetres or centimetres, that would
+/// fit); nothing otherwise.
 std::optional<std::string> rangeGeometryWarning(const std::vector<loc::Event>& events,
                                                 const std::vector<uwb::Anchor>& anchors);
 
