@@ -600,10 +600,11 @@ std::string geometryWarning(const data::Dataset& ds) {
 // ranges (two of them together fall short of their anchors' distance apart), so the import reads
 // the anchors in the one unit that fits, loudly, and the recording scores as the one in metres.
 // Asked to take them as metres, it does, and loading names the unit that would fit. One anchor
-// written 10 times too far (a typo): loading names it. Ranges and anchors both in millimetres
-// (a median range of kilometres, among anchors as far apart) are refused, naming the options,
-// and read with them; the ranges in millimetres taken as metres are named too long, with the
-// unit that fits. The right data: none of these warnings.
+// written 10 times too far (a typo): loading names it and leaves its ranges out, and the other
+// three place the tag. Ranges and anchors both in millimetres (a median range of kilometres,
+// among anchors as far apart) are refused, naming the options, and read with them; the ranges in
+// millimetres taken as metres are named too long, with the unit that fits. The right data: none of
+// these warnings.
 TEST(CsvImport, AnchorsInAnotherUnitOrPlaceThanTheRanges) {
   const auto dir = test::scratchDir();
   const auto [ranges, ref] = test::driveACircle(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
@@ -653,10 +654,17 @@ TEST(CsvImport, AnchorsInAnotherUnitOrPlaceThanTheRanges) {
 
   const auto typo = import("typo", "1,-4,-4,0.4\n2,5,-4,2.2\n3,5,5,1.5\n4,-40,5,2.6\n", ranges);
   EXPECT_FALSE(warned(typo, "anchors read as"));  // read in feet, it would fit
-  const std::string tw = geometryWarning(data::loadDataset(typo.manifest, ""));
+  const auto typo_ds = data::loadDataset(typo.manifest, "");
+  const std::string tw = geometryWarning(typo_ds);
   std::printf("[ GEOMETRY ] %s\n", tw.c_str());
   EXPECT_NE(tw.find("the ranges of anchor 4 cannot"), std::string::npos) << tw;
   EXPECT_NE(tw.find("Check anchor 4's coordinates"), std::string::npos) << tw;
+  EXPECT_NE(tw.find("its ranges are left out"), std::string::npos) << tw;
+  ASSERT_EQ(typo_ds.anchors.size(), 3u);  // anchor 4 left out: the other three place the tag
+  EXPECT_EQ(uwb::findAnchor(typo_ds.anchors, 4), nullptr);
+  const auto typo_run = eval::evaluateMethod(typo_ds, "uwb-gn", 1, 1);
+  EXPECT_LT(typo_run.metrics.rmse_2d, 0.2);
+  EXPECT_GT(typo_run.rejected.at("unknown_anchor"), 0);
 
   std::string ranges_mm;
   {

@@ -108,12 +108,14 @@ std::optional<std::pair<std::string, double>> anchorUnitFromRanges(
 }
 
 std::optional<std::string> rangeGeometryWarning(const std::vector<loc::Event>& events,
-                                                const std::vector<uwb::Anchor>& anchors) {
+                                                const std::vector<uwb::Anchor>& anchors,
+                                                std::optional<int>* anchor_off) {
   const RangePairs p = checkRangePairs(events, anchors);
   if (p.pairs < 50) return std::nullopt;
   char buf[600];
   if (p.shortFraction() >= 0.1) {
     if (const auto off = oneAnchorOff(events, anchors, p)) {
+      if (anchor_off) *anchor_off = off;
       const auto& [n, n_short] = p.per_anchor.at(*off);
       std::snprintf(buf, sizeof buf,
                     "the ranges of anchor %d cannot be distances to where it is written: in %ld "

@@ -53,8 +53,9 @@ std::optional<std::pair<std::string, double>> anchorUnitFromRanges(
 /// are over half short while under a quarter of the others' are (its coordinates or id are
 /// wrong), or else over half of all pairs short (with the anchors' unit that would fit, if one
 /// does); over half of them long (with the ranges' unit, millimetres or centimetres, that would
-/// fit); nothing otherwise.
+/// fit); nothing otherwise. The one anchor found off, when it is, into `anchor_off`.
 std::optional<std::string> rangeGeometryWarning(const std::vector<loc::Event>& events,
-                                                const std::vector<uwb::Anchor>& anchors);
+                                                const std::vector<uwb::Anchor>& anchors,
+                                                std::optional<int>* anchor_off = nullptr);
 
 }  // namespace uwbloc::data
