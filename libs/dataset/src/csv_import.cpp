@@ -104,10 +104,9 @@ constexpr double kFarthestRange = 1000.0;
 // Metres per unit of a length unit's name (m, cm, mm, in, ft); throws InputError naming
 // `option` for another.
 double metresPerUnit(const std::string& unit, const char* option) {
-  static const std::pair<const char*, double> kUnits[] = {
-      {"m", 1.0}, {"cm", 1e-2}, {"mm", 1e-3}, {"in", 0.0254}, {"ft", 0.3048}};
-  for (const auto& [name, scale] : kUnits)
-    if (unit == name) return scale;
+  if (unit == "m") return 1.0;
+  for (const auto& u : kAnchorUnits)
+    if (unit == u.symbol) return u.metres;
   throw InputError(std::string("import csv: ") + option +
                    " must be auto, m, cm, mm, in or ft, got '" + unit + "'");
 }
@@ -135,11 +134,10 @@ double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anch
   }
   // The readings that put the tag among the anchors: a median range between a tenth of and 3
   // times their largest spacing.
-  std::vector<std::pair<const char*, double>> fits;
-  for (const auto& [name, scale] :
-       {std::pair<const char*, double>{"centimetres", 1e-2}, {"millimetres", 1e-3}})
-    if (median * scale >= 0.1 * spacing && median * scale <= std::max(3.0 * spacing, 3.0))
-      fits.emplace_back(name, scale);
+  std::vector<LengthUnit> fits;
+  for (const auto& u : kRangeUnits)
+    if (median * u.metres >= 0.1 * spacing && median * u.metres <= std::max(3.0 * spacing, 3.0))
+      fits.push_back(u);
   if (fits.size() != 1) {
     std::snprintf(buf, sizeof buf,
                   "the ranges' median, %.6g, is over 10 times the anchors' largest spacing "
@@ -152,9 +150,9 @@ double rangeScale(const std::vector<double>& values, const std::vector<uwb::Anch
   std::snprintf(buf, sizeof buf,
                 "WARNING: %s: ranges read as %s: in metres their median, %.6g m, is over 10 times "
                 "the anchors' largest spacing (%.3g m) and over 100 m (--range-unit sets the unit)",
-                path.c_str(), fits.front().first, median, spacing);
+                path.c_str(), fits.front().name, median, spacing);
   s.notes.emplace_back(buf);
-  return fits.front().second;
+  return fits.front().metres;
 }
 
 // The time of a row in seconds (the column's value times `scale`), or nothing (counted) when it
@@ -562,12 +560,12 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   }
   if (req.anchor_unit == "auto")
     if (const auto unit = anchorUnitFromRanges(events, anchors)) {
-      scaleAnchors(unit->second);
-      s.notes.push_back("WARNING: " + req.anchors + ": anchors read as " + unit->first +
+      scaleAnchors(unit->metres);
+      s.notes.push_back("WARNING: " + req.anchors + ": anchors read as " + unit->name +
                         ": in metres the ranges could not be distances to them (two ranges of "
                         "one tag, taken together, fall short of their anchors' distance apart), "
                         "in " +
-                        unit->first + " they can (--anchor-unit sets the unit)");
+                        unit->name + " they can (--anchor-unit sets the unit)");
     }
   if (!req.odometry.empty()) readOdometry(req, reference, events, s);
   if (!req.imu.empty()) readImu(req, events, s);

@@ -451,16 +451,15 @@ ClockLag clockLag(const Dataset& ds) {
 // beside it or 0.5 rad of turning in all.
 std::optional<double> odometryTurnAgreement(const Dataset& ds) {
   if (!ds.manifest.reference_heading) return std::nullopt;
-  double from = NAN, ab = 0.0, aa = 0.0, bb = 0.0, turned = 0.0;
+  double ab = 0.0, aa = 0.0, bb = 0.0, turned = 0.0;
   long n = 0;
+  std::optional<Eigen::Vector3d> at_last;  // the reference at the previous increment's time
   for (const auto& e : ds.events) {
     const auto* odo = std::get_if<loc::OdometryIncrement>(&e);
     if (!odo) continue;
-    const double t0 = std::exchange(from, odo->t);
-    if (!std::isfinite(t0) || !std::isfinite(odo->delta.z())) continue;
-    const auto start = interpolateGroundTruth(ds.ground_truth, t0, 1.0);
     const auto end = interpolateGroundTruth(ds.ground_truth, odo->t, 1.0);
-    if (!start || !end) continue;
+    const auto start = std::exchange(at_last, end);
+    if (!start || !end || !std::isfinite(odo->delta.z())) continue;
     const double a = odo->delta.z(), b = loc::wrapAngle(end->z() - start->z());
     ab += a * b, aa += a * a, bb += b * b, turned += std::abs(a), ++n;
   }

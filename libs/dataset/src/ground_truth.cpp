@@ -76,7 +76,8 @@ std::string formatTum(const std::vector<TimedPose>& poses) {
 
 std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<TimedPose>& gt, double t,
                                                       double max_gap) {
-  if (gt.empty() || t < gt.front().t || t > gt.back().t) return std::nullopt;
+  // Written to be false for a NaN t too (lower_bound would then give begin()).
+  if (gt.empty() || !(t >= gt.front().t && t <= gt.back().t)) return std::nullopt;
   auto hi = std::lower_bound(gt.begin(), gt.end(), t,
                              [](const TimedPose& p, double v) { return p.t < v; });
   if (hi->t == t) return hi->pose;

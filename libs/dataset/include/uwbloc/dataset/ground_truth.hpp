@@ -21,7 +21,8 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
                                        const std::vector<double>& step_times = {});
 
 /// Ground truth at time t, linearly interpolated (heading along the shorter arc). Nothing when
-/// t is outside the ground truth or the bracketing samples are more than `max_gap` apart.
+/// t is outside the ground truth (or not a number) or the bracketing samples are more than
+/// `max_gap` apart.
 std::optional<Eigen::Vector3d> interpolateGroundTruth(const std::vector<TimedPose>& gt, double t,
                                                       double max_gap);
 

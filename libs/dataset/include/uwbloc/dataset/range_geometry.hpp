@@ -20,6 +20,20 @@
 
 namespace uwbloc::data {
 
+/// A unit of length: its name, its symbol and the metres in one.
+struct LengthUnit {
+  const char* name;
+  const char* symbol;
+  double metres;
+};
+/// The units anchors written in another than metres are tried in, and ranges.
+inline const std::vector<LengthUnit> kAnchorUnits = {{"millimetres", "mm", 1e-3},
+                                                     {"centimetres", "cm", 1e-2},
+                                                     {"inches", "in", 0.0254},
+                                                     {"feet", "ft", 0.3048}};
+inline const std::vector<LengthUnit> kRangeUnits = {{"millimetres", "mm", 1e-3},
+                                                    {"centimetres", "cm", 1e-2}};
+
 /// Pairs of ranges from one tag to two known anchors, the later taken at most 0.5 s after the
 /// earlier (each range paired with the latest range of every other anchor; at most about 5000
 /// ranges, evenly spread, start pairs). A pair is short when r_i + r_j + tol < d and long when
@@ -41,12 +55,11 @@ RangePairs checkRangePairs(const std::vector<loc::Event>& events,
                            double range_scale = 1.0);
 
 /// The anchors' unit that makes the ranges consistent with them (RangePairs::consistent) when
-/// the anchors as written are not: "millimetres" (scale 1e-3), "centimetres" (1e-2), "inches"
-/// (0.0254) or "feet" (0.3048), the one that alone fits. Nothing when the anchors as written fit,
-/// when fewer than 50 pairs were found, when one anchor alone is off (see below), or when no
-/// unit or several fit.
-std::optional<std::pair<std::string, double>> anchorUnitFromRanges(
-    const std::vector<loc::Event>& events, const std::vector<uwb::Anchor>& anchors);
+/// the anchors as written are not: the one of kAnchorUnits that alone fits. Nothing when the
+/// anchors as written fit, when fewer than 50 pairs were found, when one anchor alone is off
+/// (see below), or when no unit or several fit.
+std::optional<LengthUnit> anchorUnitFromRanges(const std::vector<loc::Event>& events,
+                                               const std::vector<uwb::Anchor>& anchors);
 
 /// A one-line explanation when the ranges cannot be distances to the anchors where they are
 /// written, with at least 50 pairs: when 10 % of them or more are short, one anchor whose pairs
