@@ -109,6 +109,16 @@ std::optional<LengthUnit> onlyUnitThatFits(const std::vector<Sample>& s,
   return fit;
 }
 
+// The warning's clause naming the one unit of the anchors (or of the ranges, `on_ranges`) that
+// would fit, or "".
+std::string unitHint(const std::vector<Sample>& s, const std::vector<uwb::Anchor>& anchors,
+                     bool on_ranges) {
+  const auto fit = onlyUnitThatFits(s, anchors, on_ranges ? kRangeUnits : kAnchorUnits, on_ranges);
+  if (!fit) return std::string();
+  return std::string("; read in ") + fit->name + ", the " + (on_ranges ? "ranges" : "anchors") +
+         " would fit them";
+}
+
 }  // namespace
 
 RangePairs checkRangePairs(const std::vector<loc::Event>& events,
@@ -150,9 +160,7 @@ std::optional<std::string> rangeGeometryWarning(const std::vector<loc::Event>& e
     }
     if (p.shortFraction() > 0.5) {
       // Inconsistent, and no one anchor off: anchorUnitFromRanges's conditions hold.
-      std::string unit;
-      if (const auto fit = onlyUnitThatFits(s, anchors, kAnchorUnits, false))
-        unit = std::string("; read in ") + fit->name + ", the anchors would fit them";
+      const std::string unit = unitHint(s, anchors, false);
       std::snprintf(buf, sizeof buf,
                     "the ranges cannot be distances to the anchors as written: in %ld of %ld "
                     "pairs of ranges from one tag to two anchors within %.1f s, the two ranges "
@@ -166,9 +174,7 @@ std::optional<std::string> rangeGeometryWarning(const std::vector<loc::Event>& e
   // Ranges far too long for the anchors: NLOS lengthens one range of a pair now and then (at
   // most 4 % of the pairs on the recordings here), not most of them.
   if (p.longFraction() <= 0.5) return std::nullopt;
-  std::string unit;
-  if (const auto fit = onlyUnitThatFits(s, anchors, kRangeUnits, true))
-    unit = std::string("; read in ") + fit->name + ", the ranges would fit them";
+  const std::string unit = unitHint(s, anchors, true);
   std::snprintf(buf, sizeof buf,
                 "the ranges cannot be distances to the anchors as written: in %ld of %ld pairs of "
                 "ranges from one tag to two anchors within %.1f s, the two ranges differ by more "
