@@ -346,6 +346,56 @@ TEST(CsvImport, WarnsWhenTheReferencesClockLags) {
   EXPECT_EQ(w.find("Or the tag sits"), std::string::npos) << w;  // its rate varies: a lag
 }
 
+// A reference whose clock counts from another origin (here two hours and 0.3 s ahead of the
+// ranges', beginning 5 s after them and ending 3 s before): it covers none of the recording, and
+// the warnings give the shift at which the ranges fit it. Stated in the manifest, the reference
+// covers the recording. A robot that stands still fits every shift alike: no shift is offered.
+TEST(CsvImport, FindsTheShiftOfAReferenceClockedFromAnotherOrigin) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d tag(0.0, 0.0, 0.8);
+  const auto [ranges, full_ref] = test::driveACircle(tag, Eigen::Vector3d::Zero(), -7200.3);
+  std::vector<std::string> rows;
+  for (size_t a = 0, b; (b = full_ref.find('\n', a)) != std::string::npos; a = b + 1)
+    rows.push_back(full_ref.substr(a, b - a + 1));
+  std::string ref = rows.front();  // the header
+  for (size_t k = 1 + 50; k + 30 < rows.size(); ++k) ref += rows[k];
+  const std::string manifest = importDrive(dir, ranges, ref, tag, false);
+  data::Dataset ds = data::loadDataset(manifest, "");
+  ASSERT_TRUE(ds.reference_shift.has_value());
+  EXPECT_NEAR(ds.reference_shift->shift, -7200.3, 0.02);
+  EXPECT_LT(ds.reference_shift->departure, 0.05);
+  const auto w = data::referenceCoverageWarning(ds);
+  ASSERT_TRUE(w.has_value());
+  std::printf("[ SHIFT    ] %s\n", w->c_str());
+  const std::string key = "gt_time_offset = ";
+  ASSERT_NE(w->find(key), std::string::npos) << *w;
+  const double offset = std::stod(w->substr(w->find(key) + key.size()));
+  EXPECT_NEAR(offset, -7200.3, 0.02);
+  std::string text = test::readText(manifest);
+  text.replace(text.find("[dataset]"), 9, "[dataset]\n" + key + std::to_string(offset));
+  test::writeText(manifest, text);
+  ds = data::loadDataset(manifest, "");
+  EXPECT_FALSE(data::referenceCoverageWarning(ds).has_value());
+  EXPECT_FALSE(ds.reference_shift.has_value());
+
+  // Standing still at (1, 0.5) for 30 s, the reference stamped from zero.
+  const Eigen::Vector3d at[] = {{-4, -4, 0.4}, {5, -4, 2.2}, {5, 5, 1.5}, {-4, 5, 2.6}};
+  std::string still = "t,anchor_id,range\n", still_ref = "t,x,y,theta\n";
+  char buf[120];
+  for (int k = 0; k < 300; ++k) {
+    for (int i = 0; i < 4; ++i) {
+      std::snprintf(buf, sizeof buf, "%.2f,%d,%.6f\n", 1000.0 + 0.1 * k, i + 1,
+                    (Eigen::Vector3d(1.0, 0.5, 0.8) - at[i]).norm() + 0.02 * ((k + i) % 3));
+      still += buf;
+    }
+    std::snprintf(buf, sizeof buf, "%.2f,1.0,0.5,0.0\n", 0.1 * k);
+    still_ref += buf;
+  }
+  ds = data::loadDataset(importDrive(dir, still, still_ref, tag, false), "");
+  EXPECT_TRUE(data::referenceCoverageWarning(ds).has_value());
+  EXPECT_FALSE(ds.reference_shift.has_value());
+}
+
 // A tag 0.3 m ahead of the reference point on a robot driving up and down a line at 1 m/s: a lag
 // of the reference's clock explains the ranges, and so does the lever arm; the warning gives
 // both, and the lever arm stated, the ranges agree.

@@ -207,6 +207,33 @@ TEST(TrajectoryEval, ASparseReferenceIsScoredAtItsOwnStamps) {
   EXPECT_EQ(eval::associatePoses(gappy, ref, {true, 5.0}).size(), ref.size() - 3);
 }
 
+// An estimator that reports at the sparse reference's own rate, but at other stamps (each
+// odometry step 1.06 s apart, 0.3 s after the reference's), is paired at every reference stamp
+// that two estimates bracket; a gap of four of the reference's steps is still not bridged.
+TEST(TrajectoryEval, EstimatesAtASparseReferencesRateButOtherStampsPair) {
+  const double step = 1.06;
+  std::vector<data::TimedPose> ref;
+  for (int k = 0; k <= 20; ++k) ref.push_back({step * k, Eigen::Vector3d(0.5 * step * k, 0, 0)});
+  std::vector<loc::PoseEstimate> est;
+  for (int k = -1; k <= 20; ++k) {
+    loc::PoseEstimate e;
+    e.t = step * k + 0.3;
+    e.pose = Eigen::Vector3d(0.5 * e.t, 0.0, 0.0);  // the same straight drive at 0.5 m/s
+    est.push_back(e);
+  }
+  const auto pairs = eval::associatePoses(est, ref, {true, 1.0});
+  ASSERT_EQ(pairs.size(), ref.size());
+  for (const auto& p : pairs) EXPECT_NEAR((p.est - p.ref).norm(), 0.0, 1e-9) << p.t;
+  const std::string said = eval::describePairing(ref, {true, 1.0});
+  EXPECT_NE(said.find("at most 1.59 s apart"), std::string::npos) << said;
+  // Without the estimates at 4.54, 5.60 and 6.66 s (a 4.24 s gap from 3.48 to 7.72 s): the four
+  // reference stamps within it (4.24, 5.30, 6.36 and 7.42 s) are not scored.
+  std::vector<loc::PoseEstimate> gappy;
+  for (const auto& e : est)
+    if (e.t < 4.0 || e.t > 7.0) gappy.push_back(e);
+  EXPECT_EQ(eval::associatePoses(gappy, ref, {true, 1.0}).size(), ref.size() - 4);
+}
+
 // The table's footer says which pairing scored the run: the reference's own stamps for a sparse
 // one, the interpolated reference for a dense one, the nearest pose when asked.
 TEST(TrajectoryEval, ThePairingIsDescribedAsItWasDone) {

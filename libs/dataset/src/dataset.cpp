@@ -82,6 +82,20 @@ long attachRangeFeatures(const std::string& path, std::vector<loc::Event>& event
   return attached;
 }
 
+namespace {
+
+// The share of the recording's span that the reference's span overlaps (1 without a reference
+// or a span).
+double referenceCoverage(const Dataset& ds) {
+  if (ds.ground_truth.empty() || ds.events.empty()) return 1.0;
+  const double span = ds.end_time - ds.start_time;
+  const double overlap = std::max(0.0, std::min(ds.end_time, ds.ground_truth.back().t) -
+                                           std::max(ds.start_time, ds.ground_truth.front().t));
+  return span > 0.0 ? overlap / span : 1.0;
+}
+
+}  // namespace
+
 bool Dataset::provides(const std::string& need) const {
   if (need == "map") return map != nullptr;
   for (const auto& e : events) {
@@ -157,6 +171,7 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
                             " messages rejected at reading (" + reason.substr(9) + ")");
   ds.start_time = loc::eventTime(ds.events.front());
   ds.end_time = loc::eventTime(ds.events.back());
+  if (referenceCoverage(ds) < 0.5) ds.reference_shift = referenceClockShift(ds);
   if (auto w = referenceBeyondRecordingWarning(ds)) ds.warnings.push_back(*w);
   // An anchor whose ranges cannot be distances to where it is written misleads every method
   // (the MRPT demo with one anchor's x ten times too large: uwb-pf 12.2 m, graph-uwb-odom
@@ -401,6 +416,42 @@ std::optional<Pose2> frameFromRanges(const std::vector<TagFitSample>& s) {
   return relativePose(polishedMove(s, relativePose(best, Pose2::Zero())), Pose2::Zero());
 }
 
+// At most `most` finite ranges from the robot's tags, evenly spread over the recording.
+std::vector<loc::Event> spreadRanges(const Dataset& ds, size_t most) {
+  size_t ranges = 0;
+  for (const auto& e : ds.events) ranges += std::holds_alternative<uwb::Range>(e);
+  const size_t stride = std::max<size_t>(1, (ranges + most - 1) / most);
+  std::vector<loc::Event> some;
+  size_t k = 0;
+  for (const auto& e : ds.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e);
+        r && r->on_robot && std::isfinite(r->range) && k++ % stride == 0)
+      some.push_back(e);
+  return some;
+}
+
+// The overall departure of `some` with the reference's stamps moved by `lag` (interpolated
+// between poses at most `max_gap` apart); HUGE_VAL with fewer than `least` of them beside it.
+double departureAtLag(const Dataset& ds, const std::vector<loc::Event>& some, double lag,
+                      double max_gap, size_t least) {
+  const auto s = rangesBesideReference(some, ds.anchors, ds.ground_truth, lag, max_gap);
+  return s.size() < least ? HUGE_VAL : departure(s, Pose2::Zero()).overall;
+}
+
+// Golden-section search of `at` between lo and hi, to 5 ms: the middle of the last bracket.
+template <typename At>
+double goldenSection(const At& at, double lo, double hi) {
+  const double phi = (std::sqrt(5.0) - 1.0) / 2.0;
+  while (hi - lo > 0.005) {
+    const double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
+    if (at(a) < at(b))
+      hi = b;
+    else
+      lo = a;
+  }
+  return 0.5 * (lo + hi);
+}
+
 // The lag of the reference's clock behind the ranges' that makes them agree best, within 5 s:
 // the overall departure on at most 4000 ranges over a grid of lags, then golden-section search
 // between the best one's neighbours, to 5 ms. With its departure, and the departure at no lag.
@@ -408,20 +459,8 @@ struct ClockLag {
   double lag = 0.0, departure = 0.0, at_zero = 0.0;
 };
 ClockLag clockLag(const Dataset& ds) {
-  // The ranges searched, picked once.
-  size_t ranges = 0;
-  for (const auto& e : ds.events) ranges += std::holds_alternative<uwb::Range>(e);
-  const size_t stride = std::max<size_t>(1, (ranges + 3999) / 4000);
-  std::vector<loc::Event> some;
-  size_t k = 0;
-  for (const auto& e : ds.events)
-    if (const auto* r = std::get_if<uwb::Range>(&e);
-        r && r->on_robot && std::isfinite(r->range) && k++ % stride == 0)
-      some.push_back(e);
-  const auto at = [&](double lag) {
-    const auto s = rangesBesideReference(some, ds.anchors, ds.ground_truth, lag);
-    return s.size() < 50 ? HUGE_VAL : departure(s, Pose2::Zero()).overall;
-  };
+  const std::vector<loc::Event> some = spreadRanges(ds, 4000);
+  const auto at = [&](double lag) { return departureAtLag(ds, some, lag, 1.0, 50); };
   std::vector<double> grid = {0.0};
   for (double g : {0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0})
     grid.push_back(g), grid.push_back(-g);
@@ -431,17 +470,9 @@ ClockLag clockLag(const Dataset& ds) {
   const size_t best = static_cast<size_t>(std::min_element(d.begin(), d.end()) - d.begin());
   ClockLag c{grid[best], d[best],
              d[static_cast<size_t>(std::find(grid.begin(), grid.end(), 0.0) - grid.begin())]};
-  double lo = grid[best > 0 ? best - 1 : best], hi = grid[best + 1 < grid.size() ? best + 1 : best];
-  const double phi = (std::sqrt(5.0) - 1.0) / 2.0;
-  while (hi - lo > 0.005) {
-    const double a = hi - phi * (hi - lo), b = lo + phi * (hi - lo);
-    if (at(a) < at(b))
-      hi = b;
-    else
-      lo = a;
-  }
-  if (const double mid = 0.5 * (lo + hi), dm = at(mid); dm < c.departure)
-    c.lag = mid, c.departure = dm;
+  const double mid = goldenSection(at, grid[best > 0 ? best - 1 : best],
+                                   grid[best + 1 < grid.size() ? best + 1 : best]);
+  if (const double dm = at(mid); dm < c.departure) c.lag = mid, c.departure = dm;
   return c;
 }
 
@@ -648,18 +679,64 @@ std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& e
          " messages (written with too few digits?); results from it cannot be trusted";
 }
 
+namespace {
+
+// The sentence that gives the shift of the reference's stamps found by referenceClockShift;
+// empty without one.
+std::string shiftSentence(const Dataset& ds) {
+  if (!ds.reference_shift) return std::string();
+  const ReferenceShift& f = *ds.reference_shift;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                ". The ranges fit the reference with its stamps moved by %+.3f s (each departs "
+                "from its link's median error by a median %.3f m there, %.2f m at the other "
+                "shifts tried): if its clock counts from another origin, state it in the "
+                "manifest: [dataset] gt_time_offset = %.3f",
+                f.shift, f.departure, f.elsewhere, ds.manifest.gt_time_offset + f.shift);
+  return buf;
+}
+
+}  // namespace
+
+std::optional<ReferenceShift> referenceClockShift(const Dataset& ds) {
+  if (ds.ground_truth.size() < 2 || ds.events.empty()) return std::nullopt;
+  std::vector<double> steps;
+  for (size_t k = 1; k < ds.ground_truth.size(); ++k)
+    steps.push_back(ds.ground_truth[k].t - ds.ground_truth[k - 1].t);
+  const double max_gap = std::max(1.0, 2.5 * loc::medianOf(steps));
+  const std::vector<loc::Event> some = spreadRanges(ds, 1000);
+  const size_t least = std::max<size_t>(50, some.size() / 4);
+  const auto at = [&](double shift) { return departureAtLag(ds, some, shift, max_gap, least); };
+  const double starts = ds.start_time - ds.ground_truth.front().t;
+  const double ends = ds.end_time - ds.ground_truth.back().t;
+  std::vector<std::pair<double, double>> tried;  // (shift, departure), the finite ones
+  for (double centre : {starts, ends, 1800.0 * std::round(starts / 1800.0)})
+    for (int k = -150; k <= 150; ++k)
+      if (const double d = at(centre + 0.1 * k); d < HUGE_VAL) tried.emplace_back(centre + 0.1 * k, d);
+  if (tried.size() < 10) return std::nullopt;
+  const auto best = *std::min_element(tried.begin(), tried.end(), [](const auto& a, const auto& b) {
+    return a.second < b.second;
+  });
+  std::vector<double> elsewhere;
+  for (const auto& [shift, d] : tried)
+    if (std::abs(shift - best.first) > 1.0) elsewhere.push_back(d);
+  if (elsewhere.size() < 10) return std::nullopt;
+  ReferenceShift f{best.first, best.second, loc::medianOf(elsewhere)};
+  if (f.departure > kLooksRight || f.departure >= 0.5 * f.elsewhere) return std::nullopt;
+  const double mid = goldenSection(at, best.first - 0.1, best.first + 0.1);
+  if (const double dm = at(mid); dm < f.departure) f.shift = mid, f.departure = dm;
+  return f;
+}
+
 std::optional<std::string> referenceCoverageWarning(const Dataset& ds) {
-  if (ds.ground_truth.empty() || ds.events.empty()) return std::nullopt;
-  const double t0 = ds.start_time, t1 = ds.end_time;
-  const double g0 = ds.ground_truth.front().t, g1 = ds.ground_truth.back().t;
-  const double overlap = std::max(0.0, std::min(t1, g1) - std::max(t0, g0));
-  const double span = t1 - t0;
-  if (span <= 0.0 || overlap >= 0.5 * span) return std::nullopt;
+  const double coverage = referenceCoverage(ds);
+  if (coverage >= 0.5) return std::nullopt;
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "%s: the reference (%.3f..%.3f s) covers %.0f %% of the recording (%.3f..%.3f s)",
-                ds.manifest.ground_truth.c_str(), g0, g1, 100.0 * overlap / span, t0, t1);
-  return std::string(buf);
+                ds.manifest.ground_truth.c_str(), ds.ground_truth.front().t,
+                ds.ground_truth.back().t, 100.0 * coverage, ds.start_time, ds.end_time);
+  return buf + shiftSentence(ds);
 }
 
 double referenceReach(const Dataset& ds, double tolerance) {
@@ -683,7 +760,7 @@ std::optional<std::string> referenceBeyondRecordingWarning(const Dataset& ds) {
                 "%.1f s after its last; %.0f %% of its samples lie beyond them, so no method can "
                 "cover more than %.2f of it",
                 ds.manifest.ground_truth.c_str(), before, after, 100.0 * (1.0 - reach), reach);
-  return std::string(buf);
+  return buf + shiftSentence(ds);
 }
 
 std::string formatRangeFeatures(const std::vector<loc::Event>& events,

@@ -11,13 +11,13 @@ namespace uwbloc::data {
 std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& events,
                                                 const std::vector<uwb::Anchor>& anchors,
                                                 const std::vector<TimedPose>& reference,
-                                                double lag) {
+                                                double lag, double max_gap) {
   std::vector<TagFitSample> s;
   for (size_t i = 0; i < events.size(); ++i) {
     const auto* r = std::get_if<uwb::Range>(&events[i]);
     if (!r || !r->on_robot || !std::isfinite(r->range)) continue;
     const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id);
-    const auto pose = interpolateGroundTruth(reference, r->t - lag, 1.0);
+    const auto pose = interpolateGroundTruth(reference, r->t - lag, max_gap);
     if (a && pose)
       s.push_back(
           {*pose, a->position, r->range, r->anchor_id, r->tag_id, r->tag_on_robot, r->t, i});

@@ -20,6 +20,17 @@ double medianStep(const std::vector<data::TimedPose>& reference) {
   return loc::medianOf(std::move(steps));
 }
 
+namespace {
+// Against a sparse reference (median step `step`), the longest interval between two estimates
+// that are interpolated at a reference stamp: max_diff, or 1.5 steps when longer. Estimates
+// made at the reference's own rate but at other stamps (an estimator that reports at each
+// 1.06 s odometry step, beside a reference at the scans' stamps) are then paired; a gap of
+// several of the reference's steps is still no estimate.
+double sparseGap(const Association& association, double step) {
+  return std::max(association.max_diff, 1.5 * step);
+}
+}  // namespace
+
 std::string describePairing(const std::vector<data::TimedPose>& reference,
                             const Association& association) {
   char buf[320];
@@ -29,8 +40,8 @@ std::string describePairing(const std::vector<data::TimedPose>& reference,
   else if (const double step = medianStep(reference); step > association.sparse_step)
     std::snprintf(buf, sizeof buf,
                   "at the reference's own stamps (its median step, %.2f s, exceeds %g s: each "
-                  "estimate is interpolated there, between estimates at most %g s apart)",
-                  step, association.sparse_step, association.max_diff);
+                  "estimate is interpolated there, between estimates at most %.3g s apart)",
+                  step, association.sparse_step, sparseGap(association, step));
   else
     std::snprintf(buf, sizeof buf,
                   "against the reference interpolated at each estimate's time (between "
@@ -68,8 +79,9 @@ std::vector<PosePair> pairAtReferenceStamps(const std::vector<loc::PoseEstimate>
 std::vector<PosePair> associatePoses(const std::vector<loc::PoseEstimate>& estimates,
                                      const std::vector<data::TimedPose>& reference,
                                      const Association& association) {
-  if (association.interpolate && medianStep(reference) > association.sparse_step)
-    return pairAtReferenceStamps(estimates, reference, association.max_diff);
+  if (const double step = medianStep(reference);
+      association.interpolate && step > association.sparse_step)
+    return pairAtReferenceStamps(estimates, reference, sparseGap(association, step));
   std::vector<PosePair> out;
   out.reserve(estimates.size());
   for (const auto& e : estimates) {

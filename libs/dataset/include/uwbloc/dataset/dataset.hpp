@@ -14,6 +14,13 @@
 
 namespace uwbloc::data {
 
+/// A shift of the reference's stamps at which the ranges fit it (referenceClockShift).
+struct ReferenceShift {
+  double shift = 0.0;      ///< added to the reference's stamps [s] (as [dataset] gt_time_offset)
+  double departure = 0.0;  ///< the ranges' median departure there [m] (rangeReferenceWarning)
+  double elsewhere = 0.0;  ///< the median departure at the other shifts tried [m]
+};
+
 struct Dataset {
   Manifest manifest;
   std::string name;
@@ -27,6 +34,9 @@ struct Dataset {
   /// report prints them, and compare refuses to score such a recording unless told otherwise.
   std::vector<std::string> warnings;
   bool collapsed_time = false;  ///< far fewer distinct timestamps than messages
+  /// For a reference that covers under half of the recording, the shift of its stamps at which
+  /// the ranges fit it (referenceClockShift), which its warnings give.
+  std::optional<ReferenceShift> reference_shift;
   double start_time = 0.0;
   double end_time = 0.0;
   double duration() const { return end_time - start_time; }
@@ -47,8 +57,20 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
 /// at once) still differ in what they measure.
 std::optional<std::string> collapsedTimeWarning(const std::vector<loc::Event>& events);
 
+/// The shift of the reference's stamps (to add to them, as [dataset] gt_time_offset does) at
+/// which the ranges fit it, for a reference whose clock counts from another origin than the
+/// recording's (from its start, or in another time zone). Searched 0.1 s apart within 15 s of the
+/// shifts that align the two's starts, their ends, and the whole half hour nearest the first,
+/// on at most 1000 ranges, each shift scored by the ranges' median departure (as in
+/// rangeReferenceWarning) when a quarter of them (50 at least) lie beside the reference; the best
+/// refined to 5 ms. Kept when it departs by at most 0.25 m and under half the median departure
+/// of the shifts more than 1 s from it (a robot that hardly moves fits every shift alike);
+/// nothing otherwise.
+std::optional<ReferenceShift> referenceClockShift(const Dataset& ds);
+
 /// When the reference covers under half of the recording's time span (or none of it), a one-line
-/// explanation naming both spans; nothing otherwise (nor when there is no reference).
+/// explanation naming both spans, and the shift of its stamps that fits the ranges when
+/// loadDataset found one (reference_shift); nothing otherwise (nor when there is no reference).
 std::optional<std::string> referenceCoverageWarning(const Dataset& ds);
 
 /// The fraction of the reference's samples within `tolerance` [s] of the recording's span

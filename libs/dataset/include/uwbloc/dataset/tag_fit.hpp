@@ -34,11 +34,11 @@ struct TagFitSample {
 using Link = std::pair<int, int>;  ///< (anchor id, tag id)
 
 /// The finite ranges from the robot's tags (on_robot) to known anchors that have a reference
-/// pose `lag` [s] before their stamp (interpolated between poses at most 1 s apart).
+/// pose `lag` [s] before their stamp (interpolated between poses at most `max_gap` [s] apart).
 std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& events,
                                                 const std::vector<uwb::Anchor>& anchors,
                                                 const std::vector<TimedPose>& reference,
-                                                double lag = 0.0);
+                                                double lag = 0.0, double max_gap = 1.0);
 
 /// |err_i - the median of its link's errors| for the samples' errors `err`; each link's median
 /// into `median` when given.

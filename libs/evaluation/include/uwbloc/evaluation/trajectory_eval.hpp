@@ -25,8 +25,10 @@ struct Association {
   /// poses that far apart a straight line is not where the robot was (CARMEN intel's reference
   /// poses are 3.4 s apart, and the chord lies 0.13 m from the odometry's path at the median
   /// interval's widest point): the estimates are interpolated instead, at the reference's own
-  /// stamps, between estimates at most max_diff apart. An estimator that reports at a high rate
-  /// is then judged where the reference is known, as one that reports at the reference's stamps.
+  /// stamps, between estimates at most max_diff apart (or 1.5 of the reference's median steps,
+  /// when longer: estimates at the reference's rate but at other stamps still pair). An
+  /// estimator that reports at a high rate is then judged where the reference is known, as one
+  /// that reports at the reference's stamps.
   double sparse_step = 0.5;
 };
 
