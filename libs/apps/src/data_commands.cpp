@@ -46,8 +46,10 @@ void printSummary(const data::ImportSummary& s) {
   for (const auto& note : s.notes) std::cout << note << "\n";
   for (const auto& [reason, count] : s.skipped)
     std::cout << "Skipped " << count << " rows: " << reason << "\n";
-  for (const auto& w : data::loadDataset(s.manifest, "").warnings)
-    std::cout << "WARNING: " << w << "\n";
+  const data::Dataset ds = data::loadDataset(s.manifest, "");
+  for (const auto& w : ds.warnings) std::cout << "WARNING: " << w << "\n";
+  if (const auto w = data::referenceCoverageWarning(ds))
+    std::cout << "WARNING: " << *w << ": run and compare refuse it (--allow-partial-reference)\n";
 }
 
 }  // namespace
@@ -75,8 +77,9 @@ void ImportCommand::declare(CLI::App& parser) {
                   "lias: a per-link bias CSV (from 'uwbloc calibrate') to name in the manifest");
   cmd->add_option("--ranges", csv_.ranges,
                   "csv: ranges 't,anchor_id,range[,tag_id][,rx_power,fp_power]' (a header row of "
-                  "these names may place them)");
-  cmd->add_option("--anchors", csv_.anchors, "csv: anchors 'id,x,y,z'");
+                  "these names may place them; anchor and tag ids may be numbers or names such "
+                  "as a device's 1C8D, numbered on import and listed in ids.csv)");
+  cmd->add_option("--anchors", csv_.anchors, "csv: anchors 'id,x,y,z' (ids as in --ranges)");
   cmd->add_option("--odometry", csv_.odometry,
                   "csv: odometry 't,dx,dy,dtheta' (increments), 't,x,y,theta' (poses) or "
                   "'t,v,omega' (velocities)");
@@ -113,8 +116,9 @@ void ImportCommand::declare(CLI::App& parser) {
   cmd->add_option("--scans", csv_.scans,
                   "csv: LiDAR scans, one a row: 't,angle_min,angle_increment,r0,r1,...'");
   cmd->add_option("--tag", tags_,
-                  "csv: a tag on the robot 'id,x,y,z' [m] (repeat for several tags; default: tag "
-                  "0 at the origin, at --tag-height)");
+                  "csv: a tag on the robot 'id,x,y,z' [m], the id as the ranges write it (a "
+                  "number or a name; repeat for several tags; default: tag 0 at the origin, at "
+                  "--tag-height)");
   cmd->add_option("--scan-pose", scan_pose_, "csv: the scanner on the robot 'x,y,yaw[,height]'");
   cmd->add_option("--scan-max-range", csv_.scan_max_range,
                   "csv: the scanner's maximum range [m] (default: the longest range in the file)");
@@ -133,9 +137,19 @@ int ImportCommand::run() {
   if (format_ == "csv") {
     if (csv_.ranges.empty()) csv_.ranges = source_;
     for (const auto& t : tags_) {
-      const auto v = splitNumbers(t, "--tag");
-      if (v.size() != 4) throw data::InputError("--tag: expected 'id,x,y,z', got '" + t + "'");
-      csv_.tags[static_cast<int>(v[0])] = Eigen::Vector3d(v[1], v[2], v[3]);
+      // The id may be a name (as the ranges' tag column writes it).
+      const auto comma = t.find(',');
+      const std::string id = t.substr(0, comma);
+      const auto v = splitNumbers(comma == std::string::npos ? "" : t.substr(comma + 1), "--tag");
+      if (id.empty() || v.size() != 3)
+        throw data::InputError("--tag: expected 'id,x,y,z', got '" + t + "'");
+      const Eigen::Vector3d at(v[0], v[1], v[2]);
+      char* end = nullptr;
+      const double number = std::strtod(id.c_str(), &end);
+      if (end == id.c_str() + id.size() && number == std::floor(number) && std::abs(number) < 1e9)
+        csv_.tags[static_cast<int>(number)] = at;
+      else
+        csv_.tag_names[id] = at;
     }
     if (!scan_pose_.empty()) {
       const auto v = splitNumbers(scan_pose_, "--scan-pose");

@@ -167,33 +167,47 @@ std::optional<double> rowTime(const std::string& text, const std::string& path, 
   return t;
 }
 
-long readRanges(const CsvImportRequest& req, const std::vector<uwb::Anchor>& anchors,
-                std::vector<loc::Event>& events, ImportSummary& s) {
-  const std::string& path = req.ranges;
-  const Table table = readTable(path);
-  int ct = 0, ca = 1, cr = 2, ctag = -1, crx = -1, cfp = -1;
-  size_t width = table.rows.front().second.size();
+// The ranges file's columns, from its header or its width.
+struct RangeColumns {
+  int t = 0, anchor = 1, range = 2, tag = -1, rx = -1, fp = -1;
+  size_t width = 0;
+};
+RangeColumns rangeColumns(const Table& table, const std::string& path) {
+  RangeColumns c;
+  c.width = table.rows.front().second.size();
   if (!table.header.empty()) {
-    ct = column(table.header, {"t", "time", "timestamp"});
-    ca = column(table.header, {"anchor_id", "anchor"});
-    cr = column(table.header, {"range", "distance"});
-    ctag = column(table.header, {"tag_id", "tag"});
-    crx = column(table.header, {"rx_power", "rx_power_dbm"});
-    cfp = column(table.header, {"fp_power", "fp_power_dbm"});
-    if (ct < 0 || ca < 0 || cr < 0)
+    c.t = column(table.header, {"t", "time", "timestamp"});
+    c.anchor = column(table.header, {"anchor_id", "anchor"});
+    c.range = column(table.header, {"range", "distance"});
+    c.tag = column(table.header, {"tag_id", "tag"});
+    c.rx = column(table.header, {"rx_power", "rx_power_dbm"});
+    c.fp = column(table.header, {"fp_power", "fp_power_dbm"});
+    if (c.t < 0 || c.anchor < 0 || c.range < 0)
       throwInputError(path, 1, "the header must name the columns t, anchor_id and range");
-    width = table.header.size();
-  } else if (width == 4) {
-    ctag = 3;
-  } else if (width == 5) {
-    crx = 3, cfp = 4;
-  } else if (width == 6) {
-    ctag = 3, crx = 4, cfp = 5;
-  } else if (width != 3) {
+    c.width = table.header.size();
+  } else if (c.width == 4) {
+    c.tag = 3;
+  } else if (c.width == 5) {
+    c.rx = 3, c.fp = 4;
+  } else if (c.width == 6) {
+    c.tag = 3, c.rx = 4, c.fp = 5;
+  } else if (c.width != 3) {
     throwInputError(path, table.rows.front().first,
                     "expected 't,anchor_id,range[,tag_id][,rx_power,fp_power]', got " +
-                        std::to_string(width) + " fields");
+                        std::to_string(c.width) + " fields");
   }
+  return c;
+}
+
+// The ranges of `table` (the file req.ranges, its columns `c`), their anchor and tag ids read by
+// `anchor_ids` and `tag_ids`; without req.tags, those of `robot_tag` are the robot's.
+long readRanges(const CsvImportRequest& req, const Table& table, const RangeColumns& c,
+                const std::vector<uwb::Anchor>& anchors, IdNumbering& anchor_ids,
+                IdNumbering& tag_ids, int robot_tag, std::vector<loc::Event>& events,
+                ImportSummary& s) {
+  const std::string& path = req.ranges;
+  const int ct = c.t, ca = c.anchor, cr = c.range, ctag = c.tag, crx = c.rx, cfp = c.fp;
+  const size_t width = c.width;
   const double t_scale = timeScale(table, static_cast<size_t>(ct), req.time_unit, path, s);
   const double r_scale =
       rangeScale(columnValues(table, static_cast<size_t>(cr)), anchors, req.range_unit, path, s);
@@ -208,13 +222,13 @@ long readRanges(const CsvImportRequest& req, const std::vector<uwb::Anchor>& anc
     if (!t) continue;
     uwb::Range r;
     r.t = *t;
-    r.anchor_id = parseId(f[static_cast<size_t>(ca)], path, line, "anchor_id");
+    r.anchor_id = anchor_ids(f[static_cast<size_t>(ca)], path, line, "anchor_id");
     r.range = parseNumber(f[static_cast<size_t>(cr)], path, line, "range") * r_scale;
     if (!std::isfinite(r.range)) {
       ++s.skipped["range_non_finite"];
       continue;
     }
-    if (ctag >= 0) r.tag_id = parseId(f[static_cast<size_t>(ctag)], path, line, "tag_id");
+    if (ctag >= 0) r.tag_id = tag_ids(f[static_cast<size_t>(ctag)], path, line, "tag_id");
     if (crx >= 0 && cfp >= 0 && !f[static_cast<size_t>(crx)].empty() &&
         !f[static_cast<size_t>(cfp)].empty()) {
       r.rx_power_dbm = parseNumber(f[static_cast<size_t>(crx)], path, line, "rx_power");
@@ -225,7 +239,7 @@ long readRanges(const CsvImportRequest& req, const std::vector<uwb::Anchor>& anc
       r.on_robot = true;
     } else {
       r.tag_on_robot.z() = req.tag_height.value_or(0.0);
-      r.on_robot = r.tag_id == 0;
+      r.on_robot = r.tag_id == robot_tag;
     }
     events.emplace_back(r);
     stamps.push_back(r.t);
@@ -444,13 +458,15 @@ std::vector<TimedPose> readReference(const CsvImportRequest& req, ImportSummary&
 // tags' place cannot be read from the data: a note says what was assumed when nothing was given.
 void checkTagPlaces(const CsvImportRequest& req, const std::vector<loc::Event>& events,
                     const std::vector<uwb::Anchor>& anchors,
-                    const std::vector<TimedPose>& reference, bool heading, ImportSummary& s) {
+                    const std::vector<TimedPose>& reference, bool heading,
+                    const std::string& robot_tag, ImportSummary& s) {
   const bool given = !req.tags.empty() || req.tag_height;
   if (reference.empty()) {
     if (!given)
       s.notes.emplace_back(
-          "No tag position given: tag 0 taken at the robot's origin at height 0 (--tag "
-          "ID,X,Y,Z or --tag-height H sets it; a wrong height or lever arm reads as range error)");
+          "No tag position given: tag " + robot_tag +
+          " taken at the robot's origin at height 0 (--tag ID,X,Y,Z or --tag-height H sets it; a "
+          "wrong height or lever arm reads as range error)");
     return;
   }
   std::map<int, std::pair<Eigen::Vector3d, std::vector<TagFitSample>>> by_tag;
@@ -535,12 +551,27 @@ double secondsPerTimeUnit(const std::string& unit) {
   throw InputError("import csv: --time-unit must be auto, s, ms, us or ns, got '" + unit + "'");
 }
 
-ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir) {
-  if (req.ranges.empty()) throw InputError("import csv: --ranges is required");
-  if (req.anchors.empty()) throw InputError("import csv: --anchors is required");
+ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_dir) {
+  if (request.ranges.empty()) throw InputError("import csv: --ranges is required");
+  if (request.anchors.empty()) throw InputError("import csv: --anchors is required");
+  CsvImportRequest req = request;
   ImportSummary s;
   std::vector<loc::Event> events;
-  auto anchors = loadAnchorsCsv(req.anchors);
+  // Anchors and tags may be named (a device's "1C8D", "A3"): every integer id the files use is
+  // seen first, then the names are numbered around them (anchors from 1, tags from 0, the tags
+  // named by --tag first).
+  const Table range_table = readTable(req.ranges);
+  const RangeColumns range_columns = rangeColumns(range_table, req.ranges);
+  IdNumbering anchor_ids(1), tag_ids(0);
+  for (const auto& [line, f] : range_table.rows) {
+    if (static_cast<size_t>(range_columns.anchor) < f.size())
+      anchor_ids.see(f[static_cast<size_t>(range_columns.anchor)]);
+    if (range_columns.tag >= 0 && static_cast<size_t>(range_columns.tag) < f.size())
+      tag_ids.see(f[static_cast<size_t>(range_columns.tag)]);
+  }
+  for (const auto& [id, at] : req.tags) tag_ids.see(std::to_string(id));
+  for (const auto& [name, at] : req.tag_names) req.tags[tag_ids(name, "--tag", 0, "id")] = at;
+  auto anchors = loadAnchorsCsv(req.anchors, &anchor_ids);
   const auto scaleAnchors = [&](double scale) {
     for (auto& a : anchors) a.position *= scale;
   };
@@ -548,7 +579,26 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   std::vector<TimedPose> reference;
   bool heading = true;
   if (!req.reference.empty()) reference = readReference(req, s, &heading);
-  s.ranges = readRanges(req, anchors, events, s);
+  // Without --tag, the robot's tag is tag 0, or the one tag the ranges come from.
+  std::set<int> tags_ranging;
+  for (const auto& [line, f] : range_table.rows)
+    if (range_columns.tag >= 0 && static_cast<size_t>(range_columns.tag) < f.size())
+      tags_ranging.insert(
+          tag_ids(f[static_cast<size_t>(range_columns.tag)], req.ranges, line, "tag_id"));
+  int robot_tag = 0;
+  if (req.tags.empty() && tags_ranging.size() == 1 && *tags_ranging.begin() != 0) {
+    robot_tag = *tags_ranging.begin();
+    s.notes.push_back("The ranges come from tag " + tag_ids.nameOf(robot_tag) +
+                      " alone: it is taken as the robot's (--tag places it)");
+  } else if (req.tags.empty() && !tags_ranging.empty() && !tags_ranging.count(0)) {
+    std::string list;
+    for (int id : tags_ranging) list += (list.empty() ? "" : ", ") + tag_ids.nameOf(id);
+    s.notes.push_back("WARNING: " + req.ranges + ": the ranges come from tags " + list +
+                      ", none of them placed on the robot: every method ignores them (--tag "
+                      "ID,X,Y,Z for each tag on the robot)");
+  }
+  s.ranges = readRanges(req, range_table, range_columns, anchors, anchor_ids, tag_ids, robot_tag,
+                        events, s);
   if (s.ranges == 0) {
     std::string why;
     for (const auto& [reason, count] : s.skipped)
@@ -571,14 +621,14 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   if (!req.imu.empty()) readImu(req, events, s);
   if (!req.scans.empty()) s.scans = readScans(req, events, s);
   loc::sortByTime(events);
-  checkTagPlaces(req, events, anchors, reference, heading, s);
+  checkTagPlaces(req, events, anchors, reference, heading, tag_ids.nameOf(robot_tag), s);
   std::set<int> unknown;
   for (const auto& e : events)
     if (const auto* r = std::get_if<uwb::Range>(&e); r && !uwb::findAnchor(anchors, r->anchor_id))
       unknown.insert(r->anchor_id);
   if (!unknown.empty()) {
     std::string ids;
-    for (int id : unknown) ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+    for (int id : unknown) ids += (ids.empty() ? "" : ", ") + anchor_ids.nameOf(id);
     s.notes.push_back("WARNING: ranges to anchors missing from " + req.anchors + ": " + ids +
                       " (the methods reject them as unknown_anchor)");
   }
@@ -587,6 +637,19 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   const fs::path out(out_dir);
   writeRawlog((out / "csv.rawlog").string(), events);
   writeFileAtomic((out / "anchors.csv").string(), formatAnchorsCsv(anchors));
+  if (!anchor_ids.named().empty() || !tag_ids.named().empty()) {
+    std::string csv = "kind,name,id\n", said;
+    for (const auto& [kind, ids] : {std::pair{"anchor", &anchor_ids}, {"tag", &tag_ids}}) {
+      std::string list;
+      for (const auto& [name, id] : ids->named()) {
+        csv += std::string(kind) + "," + name + "," + std::to_string(id) + "\n";
+        list += (list.empty() ? "" : ", ") + name + " = " + std::to_string(id);
+      }
+      if (!list.empty()) said += std::string(said.empty() ? "" : "; ") + kind + "s " + list;
+    }
+    writeFileAtomic((out / "ids.csv").string(), csv);
+    s.notes.push_back("Named ids numbered (written to ids.csv): " + said);
+  }
   ManifestDraft m;
   m.comments = {"Imported by 'uwbloc import csv' from " + fs::absolute(req.ranges).string()};
   m.name = req.name.empty() ? fs::absolute(out).filename().string() : req.name;
@@ -613,6 +676,8 @@ ImportSummary importCsv(const CsvImportRequest& req, const std::string& out_dir)
   }
   if (!req.tags.empty())
     m.tags = req.tags;
+  else if (robot_tag != 0)
+    m.tags[robot_tag] = Eigen::Vector3d(0.0, 0.0, req.tag_height.value_or(0.0));
   else if (req.tag_height)
     m.tag_height = *req.tag_height;
   s.manifest = writeManifest(out_dir, m);

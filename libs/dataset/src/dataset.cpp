@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <map>
 #include <random>
+#include <set>
 #include <tuple>
 #include <utility>
 
@@ -141,6 +142,21 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
     if (robot_tags == 0)
       ds.warnings.push_back(ds.manifest.path +
                             ": [tag] lists tags, but no range comes from any of them");
+  }
+  // Ranges from tags that are none of the robot's: every method ignores them, loudly.
+  std::set<int> tags_ranging;
+  bool any_on_robot = false;
+  for (const auto& e : ds.events)
+    if (const auto* r = std::get_if<uwb::Range>(&e)) {
+      tags_ranging.insert(r->tag_id);
+      any_on_robot = any_on_robot || r->on_robot;
+    }
+  if (!tags_ranging.empty() && !any_on_robot && ds.manifest.tags.empty()) {
+    std::string list;
+    for (int id : tags_ranging) list += (list.empty() ? "" : ", ") + std::to_string(id);
+    ds.warnings.push_back(ds.manifest.rawlog + ": no range comes from a tag on the robot (the " +
+                          "ranges' tags: " + list + "; tag 0 is the robot's unless [tag] lists " +
+                          "others as tag_<id> = x y z): every method ignores them");
   }
   if (!ds.manifest.biases.empty() && apply_bias) {
     ds.counts["ranges_bias_corrected"] = corrected;
@@ -712,11 +728,11 @@ std::optional<ReferenceShift> referenceClockShift(const Dataset& ds) {
   std::vector<std::pair<double, double>> tried;  // (shift, departure), the finite ones
   for (double centre : {starts, ends, 1800.0 * std::round(starts / 1800.0)})
     for (int k = -150; k <= 150; ++k)
-      if (const double d = at(centre + 0.1 * k); d < HUGE_VAL) tried.emplace_back(centre + 0.1 * k, d);
+      if (const double d = at(centre + 0.1 * k); d < HUGE_VAL)
+        tried.emplace_back(centre + 0.1 * k, d);
   if (tried.size() < 10) return std::nullopt;
-  const auto best = *std::min_element(tried.begin(), tried.end(), [](const auto& a, const auto& b) {
-    return a.second < b.second;
-  });
+  const auto best = *std::min_element(
+      tried.begin(), tried.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
   std::vector<double> elsewhere;
   for (const auto& [shift, d] : tried)
     if (std::abs(shift - best.first) > 1.0) elsewhere.push_back(d);

@@ -102,21 +102,28 @@ std::string writeManifest(const std::string& dir, const ManifestDraft& draft) {
   return path;
 }
 
-std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path) {
-  std::vector<uwb::Anchor> anchors;
+std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* names) {
+  std::vector<std::pair<int, std::vector<std::string>>> rows;
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
-    if (anchors.empty() && !f.empty() && f[0] == "id") return;  // header
+    if (rows.empty() && !f.empty() && f[0] == "id") return;  // header
     if (f.size() != 4)
       throwInputError(path, line, "expected 4 fields 'id,x,y,z', got " + std::to_string(f.size()));
+    rows.emplace_back(line, f);
+    if (names) names->see(f[0]);
+  });
+  std::vector<uwb::Anchor> anchors;
+  for (const auto& [line, f] : rows) {
     uwb::Anchor a;
-    a.id = parseId(f[0], path, line, "id");
+    a.id = names ? (*names)(f[0], path, line, "id") : parseId(f[0], path, line, "id");
     a.position << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
         parseNumber(f[3], path, line, "z");
     if (!a.position.allFinite()) throwInputError(path, line, "anchor coordinates must be finite");
     if (uwb::findAnchor(anchors, a.id))
-      throwInputError(path, line, "duplicate anchor id " + std::to_string(a.id));
+      throwInputError(
+          path, line,
+          "duplicate anchor id " + (names ? names->nameOf(a.id) : std::to_string(a.id)));
     anchors.push_back(a);
-  });
+  }
   if (anchors.empty()) throwInputError(path, 0, "no anchors");
   return anchors;
 }

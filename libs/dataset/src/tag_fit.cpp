@@ -10,8 +10,8 @@ namespace uwbloc::data {
 
 std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& events,
                                                 const std::vector<uwb::Anchor>& anchors,
-                                                const std::vector<TimedPose>& reference,
-                                                double lag, double max_gap) {
+                                                const std::vector<TimedPose>& reference, double lag,
+                                                double max_gap) {
   std::vector<TagFitSample> s;
   for (size_t i = 0; i < events.size(); ++i) {
     const auto* r = std::get_if<uwb::Range>(&events[i]);

@@ -4,11 +4,13 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "uwbloc/dataset/errors.hpp"
@@ -93,6 +95,47 @@ int parseId(const std::string& text, const std::string& file, int line, const st
         file, line,
         "field '" + field + "': expected an integer id (|id| < 1e9), got " + loc::quoteToken(text));
   return static_cast<int>(v);
+}
+
+namespace {
+// `text` as an integer id (|id| < 1e9), when it is one.
+std::optional<int> integerId(const std::string& text) {
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || errno == ERANGE ||
+      !(std::abs(v) < 1e9) || v != std::floor(v))
+    return std::nullopt;
+  return static_cast<int>(v);
+}
+}  // namespace
+
+void IdNumbering::see(const std::string& text) {
+  if (const auto id = integerId(text)) taken_.insert(*id);
+}
+
+int IdNumbering::operator()(const std::string& text, const std::string& file, int line,
+                            const std::string& field) {
+  if (const auto id = integerId(text)) return *id;
+  const bool letter = std::any_of(text.begin(), text.end(), [](char c) {
+    return std::isalpha(static_cast<unsigned char>(c)) != 0;
+  });
+  char* end = nullptr;
+  std::strtod(text.c_str(), &end);
+  const bool number = !text.empty() && end == text.c_str() + text.size();
+  if (text.empty() || (number && !letter)) return parseId(text, file, line, field);  // throws
+  if (const auto it = by_name_.find(text); it != by_name_.end()) return it->second;
+  while (taken_.count(next_)) ++next_;
+  taken_.insert(next_);
+  by_name_.emplace(text, next_);
+  named_.emplace_back(text, next_);
+  return next_++;
+}
+
+std::string IdNumbering::nameOf(int id) const {
+  for (const auto& [name, n] : named_)
+    if (n == id) return name;
+  return std::to_string(id);
 }
 
 const char* timestampProblem(double t) {

@@ -34,6 +34,8 @@ struct CsvImportRequest {
   std::string map;  ///< an occupancy map file (a .gridmap.gz or an image) the manifest names
   std::string odometry_kind = "auto";   ///< auto | increments | poses | velocities
   std::map<int, Eigen::Vector3d> tags;  ///< tag id -> position on the robot (x y z) [m]
+  /// Tags named in the ranges ("T1", "left") -> position on the robot; numbered with them.
+  std::map<std::string, Eigen::Vector3d> tag_names;
   std::optional<double> tag_height;     ///< tag 0's height when `tags` is empty [m]
   Eigen::Vector3d scan_pose = Eigen::Vector3d::Zero();  ///< scanner on the robot (x, y, yaw)
   double scan_height = 0.0;                             ///< [m]
@@ -61,7 +63,8 @@ struct CsvImportRequest {
 double secondsPerTimeUnit(const std::string& unit);
 
 /// Writes rawlog, anchors.csv, ground_truth.tum, range_features.csv (when the ranges carry
-/// powers) and dataset.ini into `out_dir`.
+/// powers) and dataset.ini into `out_dir`; ids.csv ("kind,name,id") when anchors or tags are
+/// named (a device's "1C8D", "A3") rather than numbered: their numbers in the rest.
 ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_dir);
 
 /// Writes `ds` as the CSV files above (ranges.csv, anchors.csv, odometry.csv as increments,

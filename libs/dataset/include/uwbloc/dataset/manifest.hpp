@@ -111,8 +111,12 @@ struct Manifest {
 /// `data_dir` resolves "${DATA}/" paths (may be empty when none is configured).
 Manifest loadManifest(const std::string& path, const std::string& data_dir);
 
-/// Loads anchors from a CSV of "id,x,y,z" rows (a header row is allowed).
-std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path);
+class IdNumbering;  // text_io.hpp
+
+/// Loads anchors from a CSV of "id,x,y,z" rows (a header row is allowed). With `names`, an id may
+/// be a name, numbered by it (after it has seen every integer id of the file); without, it must
+/// be an integer.
+std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* names = nullptr);
 /// The same CSV, with its header.
 std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors);
 

@@ -2,7 +2,10 @@
 #pragma once
 
 #include <functional>
+#include <map>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace uwbloc::data {
@@ -25,6 +28,33 @@ double parseNumber(const std::string& text, const std::string& file, int line,
 
 /// Parses an integer id (|id| < 1e9), or throws InputError naming file, line and field.
 int parseId(const std::string& text, const std::string& file, int line, const std::string& field);
+
+/// Ids as a user's files write them: integers as they are, and names (a device's "1C8D", "A3",
+/// "tag_left") numbered. A field is a name when it is no integer id (parseId) and holds a letter
+/// or is no number at all ("0x6E44" reads as the integer 28228; "3.5" is an error, not a name).
+/// Every integer the files use must be seen (see) before any name is numbered, so that no name
+/// takes an id that an integer already has.
+class IdNumbering {
+ public:
+  /// Names are numbered from `first` up, skipping the integers seen.
+  explicit IdNumbering(int first) : next_(first) {}
+  /// Keeps `text`'s integer, when it is one, from every name.
+  void see(const std::string& text);
+  /// `text`'s id: its integer, or its name's number (given at its first use). Throws InputError
+  /// naming file, line and field for a number that is no integer id.
+  int operator()(const std::string& text, const std::string& file, int line,
+                 const std::string& field);
+  /// The names numbered, in the order of their first use.
+  const std::vector<std::pair<std::string, int>>& named() const { return named_; }
+  /// The name of `id`, or its integer as text.
+  std::string nameOf(int id) const;
+
+ private:
+  int next_;
+  std::set<int> taken_;
+  std::map<std::string, int> by_name_;
+  std::vector<std::pair<std::string, int>> named_;
+};
 
 /// The latest usable timestamp [s]: about the year 3000.
 inline constexpr double kLatestTimestamp = 3.3e10;
