@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "csv_drive.hpp"
 #include "simulated_scenario.hpp"
@@ -11,6 +12,7 @@
 #include "uwbloc/dataset/csv_import.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/librsf_import.hpp"
+#include "uwbloc/dataset/odometry_check.hpp"
 #include "uwbloc/dataset/range_geometry.hpp"
 #include "uwbloc/evaluation/metrics.hpp"
 #include "uwbloc/evaluation/runner.hpp"
@@ -325,6 +327,72 @@ TEST(CsvImport, ALoneTagIsTheRobots) {
   EXPECT_NE(warned.find("no range comes from a tag on the robot (the ranges' tags: 5, 7;"),
             std::string::npos)
       << warned;
+}
+
+// A robot driving curves among four anchors for 200 s (ranges to all four at 10 Hz with 5 cm of
+// noise and one range in ten 2 m long; odometry increments at 10 Hz). Its odometry written with
+// its y and turn negated, its turn in degrees or its distances in millimetres: import csv reads it
+// the way that follows the ranges' own fixes, and says so; kept as written, loading names the
+// reading. As written, or with a tenth of its turns off, nothing is said.
+TEST(OdometryCheck, TheFixesNameAnOdometryWrittenInAnotherConvention) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d at[] = {{-6, -6, 2.0}, {7, -6, 2.5}, {7, 7, 1.8}, {-6, 7, 2.2}};
+  const std::string anchors =
+      test::writeText(dir / "a.csv", "1,-6,-6,2.0\n2,7,-6,2.5\n3,7,7,1.8\n4,-6,7,2.2\n");
+  std::string ranges = "t,anchor_id,range\n";
+  std::vector<std::pair<double, Eigen::Vector3d>> increments;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  Eigen::Vector3d pose(-3.0, -2.0, 0.3);
+  char buf[120];
+  for (int k = 0; k < 2000; ++k) {
+    const double t = 0.1 * k;
+    const Eigen::Vector3d delta(0.08, 0.0, 0.05 * std::sin(0.05 * t) + 0.03 * std::sin(0.31 * t));
+    pose = composePose(pose, delta);
+    increments.emplace_back(t, delta);
+    for (int i = 0; i < 4; ++i) {
+      const double r = (at[i] - Eigen::Vector3d(pose.x(), pose.y(), 0.5)).norm() + noise(rng) +
+                       ((k + i) % 10 == 0 ? 2.0 : 0.0);
+      std::snprintf(buf, sizeof buf, "%.3f,%d,%.4f\n", t + 0.001 * (i + 1), i + 1, r);
+      ranges += buf;
+    }
+  }
+  data::CsvImportRequest r;
+  r.ranges = test::writeText(dir / "r.csv", ranges);
+  r.anchors = anchors;
+  r.tag_height = 0.5;
+  // The odometry with its columns multiplied by `scale`, imported as `convention`: the import's
+  // warning about it and loading's.
+  const auto import = [&](const Eigen::Vector3d& scale, const std::string& convention) {
+    std::string odometry = "t,dx,dy,dtheta\n";
+    for (const auto& [t, d] : increments) {
+      std::snprintf(buf, sizeof buf, "%.3f,%.6f,%.6f,%.8f\n", t, d.x() * scale.x(),
+                    d.y() * scale.y(), d.z() * scale.z());
+      odometry += buf;
+    }
+    r.odometry = test::writeText(dir / "o.csv", odometry);
+    r.odometry_convention = convention;
+    std::string said;
+    const auto s = data::importCsv(r, (dir / "out").string());
+    for (const auto& n : s.notes)
+      if (n.find("odometry") != std::string::npos) said += n + "\n";
+    for (const auto& w : data::loadDataset(s.manifest, "").warnings) said += w + "\n";
+    return said;
+  };
+  EXPECT_EQ(import({1, 1, 1}, "auto"), "");
+  EXPECT_EQ(import({1, 1, 1.1}, "auto"), "");
+  const auto named = [&](const Eigen::Vector3d& scale, const char* reading) {
+    const std::string read = import(scale, "auto");
+    std::printf("[ ODOMETRY ] %s", read.c_str());
+    EXPECT_NE(read.find(std::string("odometry read ") + reading), std::string::npos) << read;
+    EXPECT_EQ(read.find("does not follow", read.find('\n')), std::string::npos) << read;
+    const std::string kept = import(scale, "as-written");
+    EXPECT_NE(kept.find(std::string("but does ") + reading), std::string::npos) << kept;
+    EXPECT_NE(kept.find("--odometry-convention"), std::string::npos) << kept;
+  };
+  named({1, -1, -1}, "with its y and turn negated");
+  named({1, 1, 180.0 / M_PI}, "with its turn in degrees");
+  named({1000, 1000, 1}, "with its distances in millimetres");
 }
 
 TEST(CsvImport, TimeAndRangeUnitsFromTheData) {

@@ -88,6 +88,13 @@ void ImportCommand::declare(CLI::App& parser) {
                   "count, or dead reckoning against --reference")
       ->check(CLI::IsMember({"auto", "increments", "poses", "velocities"}))
       ->capture_default_str();
+  cmd->add_option("--odometry-convention", csv_.odometry_convention,
+                  "csv: how the odometry is written: as-written, clockwise (its y and turn "
+                  "negated), degrees (its turn), mm or cm (its distances); auto: as written, "
+                  "unless another of these follows the track of the ranges' own fixes where it "
+                  "does not, which is taken (with a warning)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "as-written", "clockwise", "degrees", "mm", "cm"}));
   cmd->add_option("--time-unit", csv_.time_unit,
                   "csv: the unit of every file's time column; auto: seconds, unless a file's "
                   "median stamp would then be after the year 3000, where the first of ms, us "

@@ -9,6 +9,7 @@
 #include "odometry_poses.hpp"
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/ground_truth.hpp"
+#include "uwbloc/dataset/odometry_check.hpp"
 #include "uwbloc/dataset/range_geometry.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/tag_fit.hpp"
@@ -310,7 +311,8 @@ double deadReckoningError(const std::vector<loc::OdometryIncrement>& inc,
 }
 
 void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& reference,
-                  std::vector<loc::Event>& events, ImportSummary& s) {
+                  const std::vector<uwb::Anchor>& anchors, std::vector<loc::Event>& events,
+                  ImportSummary& s) {
   const std::string& path = req.odometry;
   const Table table = readTable(path);
   std::string kind = req.odometry_kind;
@@ -370,7 +372,37 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
                   std::max(e_inc, e_pose));
     s.notes.emplace_back(buf);
   }
-  for (const auto& o : odometryIncrements(rows, kind)) events.emplace_back(o);
+  // Read in `c` (odometry_check.hpp): the raw columns scaled, before they become increments (a
+  // pose's heading in degrees must be turned to radians before two poses are differenced).
+  const auto incrementsAs = [&](const OdometryConvention& c) {
+    std::vector<OdoRow> scaled = rows;
+    const Eigen::Vector3d k =
+        kind == "velocities" ? Eigen::Vector3d(c.scale.x(), c.scale.z(), 1.0) : c.scale;
+    for (auto& r : scaled) r.v = r.v.cwiseProduct(k);
+    return odometryIncrements(scaled, kind);
+  };
+  const auto& conventions = odometryConventions();
+  const OdometryConvention* use = nullptr;
+  std::string options;
+  for (const auto& c : conventions) {
+    if (req.odometry_convention == c.option) use = &c;
+    options += std::string(options.empty() ? "" : ", ") + c.option;
+  }
+  if (req.odometry_convention == "auto") {
+    use = &conventions.front();
+    std::vector<std::vector<loc::OdometryIncrement>> candidates;
+    for (const auto& c : conventions) candidates.push_back(incrementsAs(c));
+    if (const auto readings = odometryReadings(candidates, events, anchors))
+      if (const auto better = betterOdometryReading(*readings)) {
+        use = better->reading.convention;
+        s.notes.push_back("WARNING: " + path + ": odometry read " + use->name + ": " +
+                          better->describe() + " (--odometry-convention as-written keeps it)");
+      }
+  } else if (!use) {
+    throw InputError("import csv: --odometry-convention must be auto or one of " + options +
+                     ", got '" + req.odometry_convention + "'");
+  }
+  for (const auto& o : incrementsAs(*use)) events.emplace_back(o);
 }
 
 void readImu(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {
@@ -617,7 +649,7 @@ ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_
                         "in " +
                         unit->name + " they can (--anchor-unit sets the unit)");
     }
-  if (!req.odometry.empty()) readOdometry(req, reference, events, s);
+  if (!req.odometry.empty()) readOdometry(req, reference, anchors, events, s);
   if (!req.imu.empty()) readImu(req, events, s);
   if (!req.scans.empty()) s.scans = readScans(req, events, s);
   loc::sortByTime(events);

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "uwbloc/dataset/errors.hpp"
+#include "uwbloc/dataset/odometry_check.hpp"
 #include "uwbloc/dataset/range_geometry.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/tag_fit.hpp"
@@ -93,6 +94,18 @@ double referenceCoverage(const Dataset& ds) {
   const double overlap = std::max(0.0, std::min(ds.end_time, ds.ground_truth.back().t) -
                                            std::max(ds.start_time, ds.ground_truth.front().t));
   return span > 0.0 ? overlap / span : 1.0;
+}
+
+// "moved by S s (each departs ... by a median D m there, <otherwise>): <cause>, state it in the
+// manifest: [dataset] gt_time_offset = <the manifest's offset + S>".
+std::string stampsMovedBy(const Dataset& ds, double shift, double there,
+                          const std::string& otherwise, const std::string& cause) {
+  char buf[500];
+  std::snprintf(buf, sizeof buf,
+                "moved by %+.3f s (each departs from its link's median error by a median %.3f m "
+                "there, %s): %s, state it in the manifest: [dataset] gt_time_offset = %.3f",
+                shift, there, otherwise.c_str(), cause.c_str(), ds.manifest.gt_time_offset + shift);
+  return buf;
 }
 
 }  // namespace
@@ -203,6 +216,8 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
     }
     ds.warnings.push_back(ds.manifest.rawlog + ": " + *w);
   }
+  if (auto w = odometryTrackWarning(ds.events, ds.anchors))
+    ds.warnings.push_back(ds.manifest.rawlog + ": " + *w);
   if (auto w = rangeReferenceWarning(ds)) ds.warnings.push_back(*w);
   return ds;
 }
@@ -610,14 +625,12 @@ std::optional<std::string> rangeReferenceWarning(const Dataset& ds) {
   // Where both a lag and a frame would explain it, the one that explains more.
   if (frame && clocks && lag.departure < frame->after) frame.reset();
   if (clocks && !frame) {
-    char buf[600];
-    std::snprintf(buf, sizeof buf,
-                  "the ranges agree best with the reference's stamps moved by %+.3f s (each "
-                  "departs from its link's median error by a median %.3f m there, %.3f m as "
-                  "stamped): the reference's clock is likely offset (if so, state it in the "
-                  "manifest: [dataset] gt_time_offset = %.3f).",
-                  lag.lag, lag.departure, lag.at_zero, ds.manifest.gt_time_offset + lag.lag);
-    return ds.manifest.rawlog + ": " + buf + leverArmAlike(ds, s, lag.departure);
+    char as_stamped[40];
+    std::snprintf(as_stamped, sizeof as_stamped, "%.3f m as stamped", lag.at_zero);
+    return ds.manifest.rawlog + ": the ranges agree best with the reference's stamps " +
+           stampsMovedBy(ds, lag.lag, lag.departure, as_stamped,
+                         "the reference's clock is likely offset; if so") +
+           "." + leverArmAlike(ds, s, lag.departure);
   }
   if (!frame && before.overall <= kUnexplained && bad_links.empty()) return std::nullopt;
   char buf[1200];
@@ -702,14 +715,11 @@ namespace {
 std::string shiftSentence(const Dataset& ds) {
   if (!ds.reference_shift) return std::string();
   const ReferenceShift& f = *ds.reference_shift;
-  char buf[400];
-  std::snprintf(buf, sizeof buf,
-                ". The ranges fit the reference with its stamps moved by %+.3f s (each departs "
-                "from its link's median error by a median %.3f m there, %.2f m at the other "
-                "shifts tried): if its clock counts from another origin, state it in the "
-                "manifest: [dataset] gt_time_offset = %.3f",
-                f.shift, f.departure, f.elsewhere, ds.manifest.gt_time_offset + f.shift);
-  return buf;
+  char elsewhere[48];
+  std::snprintf(elsewhere, sizeof elsewhere, "%.2f m at the other shifts tried", f.elsewhere);
+  return ". The ranges fit the reference with its stamps " +
+         stampsMovedBy(ds, f.shift, f.departure, elsewhere,
+                       "if its clock counts from another origin");
 }
 
 }  // namespace

@@ -33,6 +33,11 @@ struct CsvImportRequest {
   std::string ranges, anchors, odometry, imu, reference, scans;
   std::string map;  ///< an occupancy map file (a .gridmap.gz or an image) the manifest names
   std::string odometry_kind = "auto";   ///< auto | increments | poses | velocities
+  /// How the odometry's columns are written (odometry_check.hpp): as-written, clockwise (its y and
+  /// turn negated), degrees (its turn), mm or cm (its distances); auto: as written, unless
+  /// another of these follows the track of the ranges' own fixes where it does not
+  /// (betterOdometryReading), which is taken, loudly.
+  std::string odometry_convention = "auto";
   std::map<int, Eigen::Vector3d> tags;  ///< tag id -> position on the robot (x y z) [m]
   /// Tags named in the ranges ("T1", "left") -> position on the robot; numbered with them.
   std::map<std::string, Eigen::Vector3d> tag_names;
