@@ -129,6 +129,46 @@ TEST(GroundTruth, ReadersAndErrors) {
       {bad + ":2", "field 'y'"});
 }
 
+// A robot turning a full circle in 100 rows, its TUM quaternions written as TUM has them, with
+// the scalar first ("qw qx qy qz"), and about y (a y-up frame's heading): the first read
+// silently, the second read scalar first and said, the third said.
+TEST(GroundTruth, QuaternionsWrittenScalarFirstOrAboutAnotherAxis) {
+  const auto dir = test::scratchDir();
+  std::string tum, scalar_first, about_y;
+  char buf[160];
+  for (int k = 0; k < 100; ++k) {
+    const double yaw = -M_PI + 2.0 * M_PI * (k + 0.5) / 100.0, c = std::cos(yaw / 2),
+                 s = std::sin(yaw / 2);
+    std::snprintf(buf, sizeof buf, "%d 1 2 0 0 0 %.12f %.12f\n", k, s, c);
+    tum += buf;
+    std::snprintf(buf, sizeof buf, "%d 1 2 0 %.12f 0 0 %.12f\n", k, c, s);
+    scalar_first += buf;
+    std::snprintf(buf, sizeof buf, "%d 1 2 0 0 %.12f 0 %.12f\n", k, s, c);
+    about_y += buf;
+  }
+  const auto read = [&](const std::string& name, const std::string& text,
+                        std::vector<std::string>& warnings) {
+    return data::readGroundTruth(writeText(dir / name, text), data::GroundTruthFormat::kTum, {},
+                                 &warnings);
+  };
+  std::vector<std::string> said;
+  const auto as_tum = read("t.tum", tum, said);
+  EXPECT_TRUE(said.empty());
+  const auto first = read("w.tum", scalar_first, said);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_NE(said[0].find("w.tum: its quaternions are read as 'qw qx qy qz'"), std::string::npos)
+      << said[0];
+  for (size_t k = 0; k < as_tum.size(); ++k) {
+    EXPECT_NEAR(as_tum[k].pose.z(), -M_PI + 2.0 * M_PI * (k + 0.5) / 100.0, 1e-9) << k;
+    EXPECT_NEAR(first[k].pose.z(), as_tum[k].pose.z(), 1e-9) << k;
+  }
+  said.clear();
+  read("y.tum", about_y, said);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_NE(said[0].find("y.tum: its quaternions tilt the vertical"), std::string::npos) << said[0];
+  EXPECT_NE(said[0].find("cannot be trusted"), std::string::npos) << said[0];
+}
+
 TEST(Rawlog, DemoStreamMatchesTheKnownLayout) {
   const auto rec = data::readRawlog(test::kDemoRawlog);
   EXPECT_EQ(rec.step_times.size(), 342u);  // one per action + sensory-frame pair

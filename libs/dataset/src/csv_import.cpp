@@ -443,6 +443,7 @@ std::vector<TimedPose> readReference(const CsvImportRequest& req, ImportSummary&
   if (width == 8 || width == 4) {
     // The readers of the manifest's formats, header row apart.
     std::vector<TimedPose> out;
+    std::vector<Eigen::Vector4d> quaternions;
     for (const auto& [line, f] : table.rows) {
       if (f.size() != width)
         throwInputError(path, line, "expected " + std::to_string(width) + " fields");
@@ -452,17 +453,21 @@ std::vector<TimedPose> readReference(const CsvImportRequest& req, ImportSummary&
       if (width == 4) {
         yaw = parseNumber(f[3], path, line, "theta");
       } else {
-        const double qx = parseNumber(f[4], path, line, "qx"),
-                     qy = parseNumber(f[5], path, line, "qy"),
-                     qz = parseNumber(f[6], path, line, "qz"),
-                     qw = parseNumber(f[7], path, line, "qw");
-        yaw = std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
+        quaternions.emplace_back(
+            parseNumber(f[4], path, line, "qx"), parseNumber(f[5], path, line, "qy"),
+            parseNumber(f[6], path, line, "qz"), parseNumber(f[7], path, line, "qw"));
+        if (!quaternions.back().allFinite()) throwInputError(path, line, "non-finite value");
       }
       p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"), yaw;
       checkReferenceRow(p, path, line);
       if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
       out.push_back(p);
     }
+    // TUM: the headings of the quaternions, read scalar first when only that is planar.
+    std::vector<std::string> said;
+    const auto yaw = planarHeadings(quaternions, path, &said);
+    for (size_t i = 0; i < yaw.size(); ++i) out[i].pose.z() = yaw[i];
+    for (const auto& w : said) s.notes.push_back("WARNING: " + w);
     return out;
   }
   if (width != 3)

@@ -180,8 +180,8 @@ Dataset loadDataset(const std::string& manifest_path, const std::string& data_di
     ds.counts["ranges_with_features"] = attachRangeFeatures(ds.manifest.range_features, ds.events);
 
   if (!ds.manifest.ground_truth.empty())
-    ds.ground_truth =
-        readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format, rec.step_times);
+    ds.ground_truth = readGroundTruth(ds.manifest.ground_truth, ds.manifest.ground_truth_format,
+                                      rec.step_times, &ds.warnings);
   for (auto& p : ds.ground_truth) p.t += ds.manifest.gt_time_offset;
   if (!ds.manifest.map.empty()) {
     try {

@@ -6,13 +6,62 @@
 
 #include "uwbloc/dataset/errors.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/localization/range_noise.hpp"
 #include "uwbloc/uwb/pose2.hpp"
 
 namespace uwbloc::data {
 
+namespace {
+// The heading (rotation about z) of the quaternion (x, y, z, w), and how far it tilts the
+// vertical [rad].
+double yawOf(double x, double y, double z, double w) {
+  return std::atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
+}
+double tiltOf(double x, double y, double z, double w) {
+  const double n2 = x * x + y * y + z * z + w * w;
+  return n2 > 0.0 ? std::acos(std::clamp(1.0 - 2.0 * (x * x + y * y) / n2, -1.0, 1.0)) : 0.0;
+}
+}  // namespace
+
+std::vector<double> planarHeadings(const std::vector<Eigen::Vector4d>& quaternions,
+                                   const std::string& path, std::vector<std::string>* warnings) {
+  std::vector<double> as_written, scalar_first, yaw;
+  for (const auto& q : quaternions) {
+    as_written.push_back(tiltOf(q[0], q[1], q[2], q[3]));
+    scalar_first.push_back(tiltOf(q[1], q[2], q[3], q[0]));
+    yaw.push_back(yawOf(q[0], q[1], q[2], q[3]));
+  }
+  if (quaternions.empty()) return yaw;
+  const double tilt = loc::medianOf(as_written), tilt_first = loc::medianOf(scalar_first);
+  const double deg = 180.0 / M_PI;
+  char buf[400];
+  if (tilt > 45.0 / deg && tilt_first < 15.0 / deg) {
+    for (size_t i = 0; i < quaternions.size(); ++i) {
+      const auto& q = quaternions[i];
+      yaw[i] = yawOf(q[1], q[2], q[3], q[0]);
+    }
+    std::snprintf(buf, sizeof buf,
+                  "%s: its quaternions are read as 'qw qx qy qz' (the scalar first): read as "
+                  "TUM's 'qx qy qz qw' they tilt the vertical a median %.0f deg, which a planar "
+                  "robot does not, and %.0f deg so",
+                  path.c_str(), tilt * deg, tilt_first * deg);
+    if (warnings) warnings->push_back(buf);
+  } else if (tilt > 45.0 / deg) {
+    std::snprintf(buf, sizeof buf,
+                  "%s: its quaternions tilt the vertical a median %.0f deg (%.0f deg read scalar "
+                  "first): its heading, the rotation about z, is not the robot's (a y-up "
+                  "frame?), and the heading scores from it cannot be trusted",
+                  path.c_str(), tilt * deg, tilt_first * deg);
+    if (warnings) warnings->push_back(buf);
+  }
+  return yaw;
+}
+
 std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthFormat format,
-                                       const std::vector<double>& step_times) {
+                                       const std::vector<double>& step_times,
+                                       std::vector<std::string>* warnings) {
   std::vector<TimedPose> out;
+  std::vector<Eigen::Vector4d> quaternions;  // TUM: each row's qx qy qz qw as written
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
     TimedPose p;
     switch (format) {
@@ -46,7 +95,8 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
         const double qz = parseNumber(f[6], path, line, "qz");
         const double qw = parseNumber(f[7], path, line, "qw");
         p.pose << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
-            std::atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz));
+            yawOf(qx, qy, qz, qw);
+        quaternions.emplace_back(qx, qy, qz, qw);
         break;
       }
       case GroundTruthFormat::kNone:
@@ -58,6 +108,10 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
     out.push_back(p);
   });
   if (out.empty()) throwInputError(path, 0, "no ground-truth rows");
+  if (!quaternions.empty()) {
+    const auto yaw = planarHeadings(quaternions, path, warnings);
+    for (size_t i = 0; i < out.size(); ++i) out[i].pose.z() = yaw[i];
+  }
   return out;
 }
 

@@ -15,10 +15,20 @@ struct TimedPose {
   Eigen::Vector3d pose = Eigen::Vector3d::Zero();  ///< (x, y, theta)
 };
 
+/// The heading (the rotation about z) of each quaternion (qx qy qz qw as TUM writes them) of the
+/// file `path`. A planar robot's quaternion hardly tilts the vertical: when, read so, the median
+/// one tilts it over 45 deg and, read as "qw qx qy qz" (the scalar first, as several libraries
+/// write it), under 15 deg, they are read that way; either case, and a tilt that neither reading
+/// explains, adds a sentence naming `path` to `warnings` (when given).
+std::vector<double> planarHeadings(const std::vector<Eigen::Vector4d>& quaternions,
+                                   const std::string& path, std::vector<std::string>* warnings);
+
 /// Reads a ground-truth file. `step_times` maps step k of a "step x y phi" file to the time of
 /// the rawlog's step k. Rows must be in time order. Throws InputError naming file and line.
+/// A TUM file's headings are planarHeadings' (with `warnings`).
 std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthFormat format,
-                                       const std::vector<double>& step_times = {});
+                                       const std::vector<double>& step_times = {},
+                                       std::vector<std::string>* warnings = nullptr);
 
 /// Ground truth at time t, linearly interpolated (heading along the shorter arc). Nothing when
 /// t is outside the ground truth (or not a number) or the bracketing samples are more than
