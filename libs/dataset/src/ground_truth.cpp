@@ -34,26 +34,24 @@ std::vector<double> planarHeadings(const std::vector<Eigen::Vector4d>& quaternio
   if (quaternions.empty()) return yaw;
   const double tilt = loc::medianOf(as_written), tilt_first = loc::medianOf(scalar_first);
   const double deg = 180.0 / M_PI;
-  char buf[400];
-  if (tilt > 45.0 / deg && tilt_first < 15.0 / deg) {
+  if (tilt <= 45.0 / deg) return yaw;
+  const bool scalar_first_fits = tilt_first < 15.0 / deg;
+  if (scalar_first_fits)
     for (size_t i = 0; i < quaternions.size(); ++i) {
       const auto& q = quaternions[i];
       yaw[i] = yawOf(q[1], q[2], q[3], q[0]);
     }
-    std::snprintf(buf, sizeof buf,
-                  "%s: its quaternions are read as 'qw qx qy qz' (the scalar first): read as "
-                  "TUM's 'qx qy qz qw' they tilt the vertical a median %.0f deg, which a planar "
-                  "robot does not, and %.0f deg so",
-                  path.c_str(), tilt * deg, tilt_first * deg);
-    if (warnings) warnings->push_back(buf);
-  } else if (tilt > 45.0 / deg) {
-    std::snprintf(buf, sizeof buf,
-                  "%s: its quaternions tilt the vertical a median %.0f deg (%.0f deg read scalar "
-                  "first): its heading, the rotation about z, is not the robot's (a y-up "
-                  "frame?), and the heading scores from it cannot be trusted",
-                  path.c_str(), tilt * deg, tilt_first * deg);
-    if (warnings) warnings->push_back(buf);
-  }
+  char buf[500];
+  std::snprintf(buf, sizeof buf,
+                "%s: its quaternions tilt the vertical a median %.0f deg read as TUM's 'qx qy qz "
+                "qw', which a planar robot does not, and %.0f deg read as 'qw qx qy qz' (the "
+                "scalar first): %s",
+                path.c_str(), tilt * deg, tilt_first * deg,
+                scalar_first_fits
+                    ? "they are read scalar first"
+                    : "their heading, the rotation about z, is not the robot's (a y-up frame?), "
+                      "and the heading scores from it cannot be trusted");
+  if (warnings) warnings->push_back(buf);
   return yaw;
 }
 
