@@ -151,10 +151,8 @@ int ImportCommand::run() {
       if (id.empty() || v.size() != 3)
         throw data::InputError("--tag: expected 'id,x,y,z', got '" + t + "'");
       const Eigen::Vector3d at(v[0], v[1], v[2]);
-      char* end = nullptr;
-      const double number = std::strtod(id.c_str(), &end);
-      if (end == id.c_str() + id.size() && number == std::floor(number) && std::abs(number) < 1e9)
-        csv_.tags[static_cast<int>(number)] = at;
+      if (const auto number = data::integerId(id))
+        csv_.tags[*number] = at;
       else
         csv_.tag_names[id] = at;
     }

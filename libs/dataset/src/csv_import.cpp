@@ -22,13 +22,6 @@ namespace uwbloc::data {
 
 namespace {
 
-bool isNumber(const std::string& s) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  std::strtod(s.c_str(), &end);
-  return end == s.c_str() + s.size();
-}
-
 std::string lower(std::string s) {
   for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -382,27 +375,32 @@ void readOdometry(const CsvImportRequest& req, const std::vector<TimedPose>& ref
     return odometryIncrements(scaled, kind);
   };
   const auto& conventions = odometryConventions();
-  const OdometryConvention* use = nullptr;
-  std::string options;
-  for (const auto& c : conventions) {
-    if (req.odometry_convention == c.option) use = &c;
-    options += std::string(options.empty() ? "" : ", ") + c.option;
-  }
+  std::vector<loc::OdometryIncrement> increments;
   if (req.odometry_convention == "auto") {
-    use = &conventions.front();
     std::vector<std::vector<loc::OdometryIncrement>> candidates;
     for (const auto& c : conventions) candidates.push_back(incrementsAs(c));
+    size_t use = 0;  // as written
     if (const auto readings = odometryReadings(candidates, events, anchors))
       if (const auto better = betterOdometryReading(*readings)) {
-        use = better->reading.convention;
-        s.notes.push_back("WARNING: " + path + ": odometry read " + use->name + ": " +
+        use = static_cast<size_t>(better->reading.convention - conventions.data());
+        s.notes.push_back("WARNING: " + path + ": odometry read " + conventions[use].name + ": " +
                           better->describe() + " (--odometry-convention as-written keeps it)");
       }
-  } else if (!use) {
-    throw InputError("import csv: --odometry-convention must be auto or one of " + options +
-                     ", got '" + req.odometry_convention + "'");
+    increments = std::move(candidates[use]);
+  } else {
+    const auto named = std::find_if(conventions.begin(), conventions.end(), [&](const auto& c) {
+      return req.odometry_convention == c.option;
+    });
+    if (named == conventions.end()) {
+      std::string options;
+      for (const auto& c : conventions)
+        options += std::string(options.empty() ? "" : ", ") + c.option;
+      throw InputError("import csv: --odometry-convention must be auto or one of " + options +
+                       ", got '" + req.odometry_convention + "'");
+    }
+    increments = incrementsAs(*named);
   }
-  for (const auto& o : incrementsAs(*use)) events.emplace_back(o);
+  for (const auto& o : increments) events.emplace_back(o);
 }
 
 void readImu(const CsvImportRequest& req, std::vector<loc::Event>& events, ImportSummary& s) {

@@ -377,23 +377,14 @@ std::optional<Pose2> frameFromFixes(std::vector<TagFitSample> s) {
   std::sort(s.begin(), s.end(), [](const TagFitSample& a, const TagFitSample& b) {
     return std::tie(a.tag_id, a.t) < std::tie(b.tag_id, b.t);
   });
+  std::vector<AnchorRange> ranges;
+  ranges.reserve(s.size());
+  for (const auto& x : s)
+    ranges.push_back({x.t, x.tag_id, x.anchor_id, x.anchor, x.range, x.tag_on_robot.z()});
   std::vector<uwb::BodyPoint> pairs;
-  for (size_t i = 0; i < s.size();) {
-    std::map<int, const TagFitSample*> latest;  // per anchor, within 0.1 s of the first
-    size_t j = i;
-    for (; j < s.size() && s[j].tag_id == s[i].tag_id && s[j].t - s[i].t <= 0.1; ++j)
-      latest[s[j].anchor_id] = &s[j];
-    std::vector<uwb::PlanarRange> planar;
-    for (const auto& [id, r] : latest) {
-      const double dz = r->anchor.z() - r->tag_on_robot.z(), h2 = r->range * r->range - dz * dz;
-      if (h2 > 0.0) planar.push_back({r->anchor.head<2>(), std::sqrt(h2)});
-    }
-    if (planar.size() >= 3)
-      if (const auto fix = uwb::solveGaussNewton(planar); fix.ok())
-        pairs.push_back({uwb::tagPosition(s[j - 1].pose, s[j - 1].tag_on_robot).head<2>(),
-                         fix.position, Eigen::Matrix2d::Identity()});
-    i = j;
-  }
+  for (const auto& [last, fix] : batchFixes(ranges))
+    pairs.push_back({uwb::tagPosition(s[last].pose, s[last].tag_on_robot).head<2>(), fix,
+                     Eigen::Matrix2d::Identity()});
   if (pairs.size() < 10) return std::nullopt;
   const auto inliers = [&](const Pose2& T) {
     std::vector<uwb::BodyPoint> in;

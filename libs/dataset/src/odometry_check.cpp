@@ -7,8 +7,8 @@
 #include <map>
 #include <utility>
 
+#include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/localization/range_noise.hpp"
-#include "uwbloc/uwb/multilateration.hpp"
 #include "uwbloc/uwb/pose2.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 #include "uwbloc/uwb/rigid_fit.hpp"
@@ -33,28 +33,15 @@ std::vector<TimedPoint> rangeFixes(const std::vector<loc::Event>& events,
       std::max_element(per_tag.begin(), per_tag.end(), [](const auto& a, const auto& b) {
         return a.second < b.second;
       })->first;
-  std::vector<const uwb::Range*> ranges;
+  std::vector<AnchorRange> ranges;
   for (const auto& e : events)
     if (const auto* r = std::get_if<uwb::Range>(&e);
         r && r->on_robot && r->tag_id == tag && std::isfinite(r->range) && r->range > 0.0)
-      ranges.push_back(r);
+      if (const uwb::Anchor* a = uwb::findAnchor(anchors, r->anchor_id))
+        ranges.push_back(
+            {r->t, r->tag_id, r->anchor_id, a->position, r->range, r->tag_on_robot.z()});
   std::vector<TimedPoint> fixes;
-  for (size_t i = 0; i < ranges.size();) {
-    std::map<int, const uwb::Range*> latest;
-    size_t j = i;
-    for (; j < ranges.size() && ranges[j]->t - ranges[i]->t <= 0.1; ++j)
-      latest[ranges[j]->anchor_id] = ranges[j];
-    std::vector<uwb::PlanarRange> planar;
-    for (const auto& [id, r] : latest)
-      if (const uwb::Anchor* a = uwb::findAnchor(anchors, id)) {
-        const double dz = a->position.z() - r->tag_on_robot.z(), h2 = r->range * r->range - dz * dz;
-        if (h2 > 0.0) planar.push_back({a->position.head<2>(), std::sqrt(h2)});
-      }
-    if (planar.size() >= 3)
-      if (const auto fix = uwb::solveGaussNewton(planar); fix.ok() && fix.position.allFinite())
-        fixes.push_back({ranges[j - 1]->t, fix.position});
-    i = j;
-  }
+  for (const auto& [last, fix] : batchFixes(ranges)) fixes.push_back({ranges[last].t, fix});
   if (fixes.size() > 5000) {
     std::vector<TimedPoint> some;
     for (size_t k = 0, step = (fixes.size() + 4999) / 5000; k < fixes.size(); k += step)

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "uwbloc/localization/range_noise.hpp"
+#include "uwbloc/uwb/multilateration.hpp"
 #include "uwbloc/uwb/range_model.hpp"
 
 namespace uwbloc::data {
@@ -23,6 +24,28 @@ std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& e
           {*pose, a->position, r->range, r->anchor_id, r->tag_id, r->tag_on_robot, r->t, i});
   }
   return s;
+}
+
+std::vector<std::pair<size_t, Eigen::Vector2d>> batchFixes(const std::vector<AnchorRange>& ranges) {
+  std::vector<std::pair<size_t, Eigen::Vector2d>> fixes;
+  for (size_t i = 0; i < ranges.size();) {
+    std::map<int, const AnchorRange*> latest;  // per anchor, within 0.1 s of the first
+    size_t j = i;
+    for (; j < ranges.size() && ranges[j].tag_id == ranges[i].tag_id &&
+           ranges[j].t - ranges[i].t <= 0.1;
+         ++j)
+      latest[ranges[j].anchor_id] = &ranges[j];
+    std::vector<uwb::PlanarRange> planar;
+    for (const auto& [id, r] : latest) {
+      const double dz = r->anchor.z() - r->tag_z, h2 = r->range * r->range - dz * dz;
+      if (h2 > 0.0) planar.push_back({r->anchor.head<2>(), std::sqrt(h2)});
+    }
+    if (planar.size() >= 3)
+      if (const auto fix = uwb::solveGaussNewton(planar); fix.ok() && fix.position.allFinite())
+        fixes.emplace_back(j - 1, fix.position);
+    i = j;
+  }
+  return fixes;
 }
 
 std::vector<double> aboutLinkMedians(std::vector<double> err,

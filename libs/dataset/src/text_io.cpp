@@ -97,8 +97,13 @@ int parseId(const std::string& text, const std::string& file, int line, const st
   return static_cast<int>(v);
 }
 
-namespace {
-// `text` as an integer id (|id| < 1e9), when it is one.
+bool isNumber(const std::string& s) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  std::strtod(s.c_str(), &end);
+  return end == s.c_str() + s.size();
+}
+
 std::optional<int> integerId(const std::string& text) {
   errno = 0;
   char* end = nullptr;
@@ -108,7 +113,6 @@ std::optional<int> integerId(const std::string& text) {
     return std::nullopt;
   return static_cast<int>(v);
 }
-}  // namespace
 
 void IdNumbering::see(const std::string& text) {
   if (const auto id = integerId(text)) taken_.insert(*id);
@@ -120,10 +124,8 @@ int IdNumbering::operator()(const std::string& text, const std::string& file, in
   const bool letter = std::any_of(text.begin(), text.end(), [](char c) {
     return std::isalpha(static_cast<unsigned char>(c)) != 0;
   });
-  char* end = nullptr;
-  std::strtod(text.c_str(), &end);
-  const bool number = !text.empty() && end == text.c_str() + text.size();
-  if (text.empty() || (number && !letter)) return parseId(text, file, line, field);  // throws
+  if (text.empty() || (isNumber(text) && !letter))
+    return parseId(text, file, line, field);  // throws
   if (const auto it = by_name_.find(text); it != by_name_.end()) return it->second;
   while (taken_.count(next_)) ++next_;
   taken_.insert(next_);

@@ -33,6 +33,21 @@ struct TagFitSample {
 };
 using Link = std::pair<int, int>;  ///< (anchor id, tag id)
 
+/// A tag's range to a known anchor, as batchFixes reads it.
+struct AnchorRange {
+  double t = 0.0;
+  int tag_id = 0, anchor_id = 0;
+  Eigen::Vector3d anchor = Eigen::Vector3d::Zero();  ///< the anchor's position
+  double range = 0.0;                                ///< [m]
+  double tag_z = 0.0;                                ///< the tag's height [m]
+};
+
+/// Planar fixes from `ranges` (sorted by tag, then time): each batch of one tag's ranges within
+/// 0.1 s of the batch's first, the latest range to each anchor projected to the tag's height,
+/// three or more of them, solved by Gauss-Newton. Each fix with the index of its batch's last
+/// range.
+std::vector<std::pair<size_t, Eigen::Vector2d>> batchFixes(const std::vector<AnchorRange>& ranges);
+
 /// The finite ranges from the robot's tags (on_robot) to known anchors that have a reference
 /// pose `lag` [s] before their stamp (interpolated between poses at most `max_gap` [s] apart).
 std::vector<TagFitSample> rangesBesideReference(const std::vector<loc::Event>& events,

@@ -3,6 +3,7 @@
 
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -25,6 +26,12 @@ void forEachRow(const std::string& path,
 /// Parses a double, or throws InputError naming file, line and field.
 double parseNumber(const std::string& text, const std::string& file, int line,
                    const std::string& field);
+
+/// Whether all of `s` reads as a number (strtod's forms: "1e3", "0x1A", "nan" too).
+bool isNumber(const std::string& s);
+
+/// `text` as an integer id (|id| < 1e9), when it is one.
+std::optional<int> integerId(const std::string& text);
 
 /// Parses an integer id (|id| < 1e9), or throws InputError naming file, line and field.
 int parseId(const std::string& text, const std::string& file, int line, const std::string& field);
