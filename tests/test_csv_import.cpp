@@ -3,6 +3,7 @@
 // malformed rows named by file and line.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -281,6 +282,105 @@ TEST(CsvImport, NamedAnchorsAndTags) {
   r.anchors = test::writeText(dir / "bad.csv", "1C8D,-4,-4,0.4\n3.5,5,-4,2.2\n");
   test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "bad").string()); },
                                               {"bad.csv:2", "'id'", "3.5"});
+}
+
+// A ranges file written one column per anchor, a row per epoch, as loggers and spreadsheets write
+// it, reads as the same ranges written one a row: the columns matched to the anchors file's ids
+// (alone, or after a word; a unit in brackets ignored), an empty, NaN or zero cell no range, a
+// column of something else left out and said. Before, its header was an error ("must name the
+// columns t, anchor_id and range").
+TEST(CsvImport, RangesWrittenOneColumnPerAnchor) {
+  const auto dir = test::scratchDir();
+  const Eigen::Vector3d tag(0.0, 0.0, 0.8);
+  const auto [ranges, ref] = test::driveACircle(tag, Eigen::Vector3d::Zero(), 0.0, true);
+  std::string wide = "Time [s],range_1 [m],d2,Anchor 3,A-4,rssi_1\n";
+  std::map<std::string, std::map<int, std::string>> epochs;  // t -> anchor -> range
+  for (size_t a = ranges.find('\n') + 1, b; (b = ranges.find('\n', a)) != std::string::npos;
+       a = b + 1) {
+    const std::string line = ranges.substr(a, b - a);
+    const size_t c1 = line.find(','), c2 = line.find(',', c1 + 1);
+    epochs[line.substr(0, c1)][std::stoi(line.substr(c1 + 1, c2 - c1 - 1))] = line.substr(c2 + 1);
+  }
+  const char* const kNoRange[] = {"", "nan", "0", "-1"};
+  int k = 0;
+  for (const auto& [t, by_anchor] : epochs) {
+    wide += t;
+    for (int i = 1; i <= 4; ++i) {
+      const auto it = by_anchor.find(i);
+      wide += "," + (it != by_anchor.end() ? it->second : std::string(kNoRange[k++ % 4]));
+    }
+    wide += ",-80\n";
+  }
+  data::CsvImportRequest r;
+  r.reference = test::writeText(dir / "ref.csv", ref);
+  r.anchors = test::writeText(dir / "a.csv", test::kFourAnchors);
+  r.tags[0] = tag;
+  r.ranges = test::writeText(dir / "long.csv", ranges);
+  const data::Dataset one_a_row =
+      data::loadDataset(data::importCsv(r, (dir / "long").string()).manifest, "");
+  r.ranges = test::writeText(dir / "wide.csv", wide);
+  const auto s = data::importCsv(r, (dir / "wide").string());
+  EXPECT_EQ(s.ranges, 300);
+  EXPECT_EQ(s.skipped.at("range_empty_cell") + s.skipped.at("range_not_positive_cell"), 900);
+  EXPECT_EQ(s.skipped.at("range_not_positive_cell"), 450);
+  std::string notes;
+  for (const auto& n : s.notes) notes += n + "\n";
+  EXPECT_NE(notes.find("one column per anchor: 'range_1 [m]' anchor 1, 'd2' anchor 2, 'Anchor 3' "
+                       "anchor 3, 'A-4' anchor 4; left out, naming no anchor of the anchors "
+                       "file: 'rssi_1'"),
+            std::string::npos)
+      << notes;
+  const data::Dataset one_a_column = data::loadDataset(s.manifest, "");
+  ASSERT_EQ(one_a_column.events.size(), one_a_row.events.size());
+  for (size_t i = 0; i < one_a_row.events.size(); ++i) {
+    const auto* a = std::get_if<uwb::Range>(&one_a_row.events[i]);
+    const auto* b = std::get_if<uwb::Range>(&one_a_column.events[i]);
+    ASSERT_EQ(a == nullptr, b == nullptr) << i;
+    if (!a) continue;
+    EXPECT_EQ(a->t, b->t) << i;
+    EXPECT_EQ(a->anchor_id, b->anchor_id) << i;
+    EXPECT_EQ(a->range, b->range) << i;
+  }
+  // Anchors named in the anchors file, a tag column; two columns of one anchor, and none.
+  r.reference.clear();
+  r.anchors = test::writeText(dir / "named.csv", "name;X;Y;Z\nA1;0;0;1\nA2;8;0;1\nA3;0;8;1\n");
+  r.ranges = test::writeText(dir / "named_wide.csv", "t,tag,A1,A2,A3\n1.0,0,3.2,5.8,5.1\n");
+  const data::Dataset named =
+      data::loadDataset(data::importCsv(r, (dir / "named").string()).manifest, "");
+  std::vector<double> read;
+  for (const auto& e : named.events)
+    if (const auto* range = std::get_if<uwb::Range>(&e)) read.push_back(range->range);
+  ASSERT_EQ(read.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) EXPECT_NEAR(read[i], (std::array{3.2, 5.8, 5.1})[i], 1e-6);
+  r.ranges = test::writeText(dir / "twice.csv", "t,A1,range_a1\n1.0,3.2,3.2\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importCsv(r, (dir / "o").string()); },
+      {"twice.csv:1", "'A1' and 'range_a1' both name anchor A1"});
+  r.ranges = test::writeText(dir / "none.csv", "t,x,y\n1.0,3.2,3.2\n");
+  test::expectErrorMentions<data::InputError>(
+      [&] { data::importCsv(r, (dir / "o").string()); },
+      {"none.csv:1", "one column per anchor of the anchors file (A1, A2, A3)"});
+}
+
+// Anchors written without heights are taken at the tag's, loudly.
+TEST(CsvImport, AnchorsWithoutHeightsAreAtTheTags) {
+  const auto dir = test::scratchDir();
+  data::CsvImportRequest r;
+  r.anchors = test::writeText(dir / "a.csv", "id,x,y\n1,0,0\n2,8,0\n3,0,8\n");
+  r.ranges = test::writeText(dir / "r.csv", "1.0,1,3\n1.0,2,5.8\n1.0,3,5.1\n");
+  r.tags[0] = Eigen::Vector3d(0.1, 0.0, 0.75);
+  const auto s = data::importCsv(r, (dir / "o").string());
+  std::string notes;
+  for (const auto& n : s.notes) notes += n + "\n";
+  EXPECT_NE(notes.find("the anchors have no height (id,x,y): they are taken at the tag's, 0.75 m"),
+            std::string::npos)
+      << notes;
+  const auto ds = data::loadDataset(s.manifest, "");
+  ASSERT_EQ(ds.anchors.size(), 3u);
+  for (const auto& a : ds.anchors) EXPECT_EQ(a.position.z(), 0.75);
+  r.anchors = test::writeText(dir / "b.csv", "1,0,0\n2,8,0,1\n");
+  test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "o2").string()); },
+                                              {"b.csv:2", "3 fields like the first row"});
 }
 
 // Ranges from one tag that is not tag 0, and no --tag: that tag is the robot's (it was ignored by
@@ -1047,7 +1147,7 @@ TEST(CsvImport, MalformedRowsNameFileAndLine) {
   r.ranges = test::writeText(dir / "r2.csv", "1.0,1,3\n1.1,1\n");
   test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "o").string()); },
                                               {"r2.csv:2", "3 fields"});
-  r.ranges = test::writeText(dir / "r3.csv", "time,beacon,range\n1.0,1,3\n");
+  r.ranges = test::writeText(dir / "r3.csv", "time,station,range\n1.0,1,3\n");
   test::expectErrorMentions<data::InputError>([&] { data::importCsv(r, (dir / "o").string()); },
                                               {"r3.csv:1", "anchor_id"});
   // Rows with an unusable time or a non-finite range are skipped and counted.

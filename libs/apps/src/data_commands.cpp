@@ -78,8 +78,13 @@ void ImportCommand::declare(CLI::App& parser) {
   cmd->add_option("--ranges", csv_.ranges,
                   "csv: ranges 't,anchor_id,range[,tag_id][,rx_power,fp_power]' (a header row of "
                   "these names may place them; anchor and tag ids may be numbers or names such "
-                  "as a device's 1C8D, numbered on import and listed in ids.csv)");
-  cmd->add_option("--anchors", csv_.anchors, "csv: anchors 'id,x,y,z' (ids as in --ranges)");
+                  "as a device's 1C8D, numbered on import and listed in ids.csv), or one column "
+                  "per anchor under a header 't,<anchor>,<anchor>,...[,tag_id]' (range_A1, d1 "
+                  "and the like name anchor A1 and 1; an empty, NaN or non-positive cell is no "
+                  "range)");
+  cmd->add_option("--anchors", csv_.anchors,
+                  "csv: anchors 'id,x,y,z' (ids as in --ranges); 'id,x,y' puts them at the tag's "
+                  "height, with a warning");
   cmd->add_option("--odometry", csv_.odometry,
                   "csv: odometry 't,dx,dy,dtheta' (increments), 't,x,y,theta' (poses) or "
                   "'t,v,omega' (velocities)");

@@ -1,6 +1,7 @@
 #include "uwbloc/dataset/csv_import.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include "uwbloc/dataset/rawlog.hpp"
 #include "uwbloc/dataset/tag_fit.hpp"
 #include "uwbloc/dataset/text_io.hpp"
+#include "uwbloc/localization/params.hpp"
 #include "uwbloc/localization/range_noise.hpp"
 
 namespace fs = std::filesystem;
@@ -27,11 +29,23 @@ std::string lower(std::string s) {
   return s;
 }
 
+// A header's column name in lower case, without a unit in brackets after it: "Range [m]" and
+// "time (s)" name the columns range and time.
+std::string headerName(const std::string& text) {
+  std::string name = lower(text);
+  if (!name.empty() && (name.back() == ']' || name.back() == ')')) {
+    const auto open = name.find_last_of(name.back() == ']' ? '[' : '(');
+    if (open != std::string::npos && open > 0) name.erase(open);
+  }
+  while (!name.empty() && (name.back() == ' ' || name.back() == '_')) name.pop_back();
+  return name;
+}
+
 // Column positions from a header row: the first of `names` found, or -1.
 int column(const std::vector<std::string>& header, std::initializer_list<const char*> names) {
   for (const char* n : names)
     for (size_t i = 0; i < header.size(); ++i)
-      if (lower(header[i]) == n) return static_cast<int>(i);
+      if (headerName(header[i]) == n) return static_cast<int>(i);
   return -1;
 }
 
@@ -161,6 +175,112 @@ std::optional<double> rowTime(const std::string& text, const std::string& path, 
   return t;
 }
 
+constexpr std::initializer_list<const char*> kTimeNames = {"t", "time", "timestamp", "stamp"},
+                                             kAnchorNames = {"anchor_id", "anchor", "beacon_id",
+                                                             "beacon"},
+                                             kRangeNames = {"range", "distance"},
+                                             kTagNames = {"tag_id", "tag"};
+
+// The anchor that a column of a ranges file written one column per anchor holds: its header
+// names an id of the anchors file (`anchor_names`, matched without case), alone or after a word
+// and a separator ("range_A3", "d1", "dist-2", "Anchor 4"), a unit in brackets after it
+// ignored. nullopt for a column of something else: a word that names a quality rather than a
+// distance ("rssi1", "std_2"), or no anchor.
+std::optional<std::string> anchorOfColumn(const std::string& header,
+                                          const std::vector<std::string>& anchor_names) {
+  const std::string name = headerName(header);
+  for (const auto& a : anchor_names)
+    if (lower(a) == name) return a;
+  size_t word = 0;
+  while (word < name.size() && std::isalpha(static_cast<unsigned char>(name[word]))) ++word;
+  if (word == 0 || word == name.size()) return std::nullopt;
+  static const std::set<std::string> kNotDistances = {
+      "rssi", "rx",    "fp", "power", "snr", "quality", "nlos",  "los",    "std", "sigma", "var",
+      "err",  "error", "x",  "y",     "z",   "seq",     "count", "status", "id",  "cir"};
+  if (kNotDistances.count(name.substr(0, word))) return std::nullopt;
+  std::string rest = name.substr(word);
+  if (rest.front() == '_' || rest.front() == '-' || rest.front() == ' ' || rest.front() == '.')
+    rest.erase(0, 1);
+  for (const auto& a : anchor_names)
+    if (lower(a) == rest) return a;
+  return std::nullopt;
+}
+
+// A ranges file written one column per anchor, a row per epoch (`t,A1,A2,A3`: a logger's or a
+// spreadsheet's layout), as the table of one range a row that the reader takes
+// (`t,anchor_id,range[,tag_id]`, each row keeping its line). `anchor_names` are the anchors
+// file's ids as written. An empty cell, NaN, or a reading at or below zero is no range (counted:
+// range_empty_cell, range_not_positive_cell); columns that name no anchor are left out, said.
+// Returns `table` unchanged when it names an anchor and a range column (or has no header).
+Table rangesOneAnAnchorRow(const Table& table, const std::vector<std::string>& anchor_names,
+                           const std::string& path, ImportSummary& s) {
+  if (table.header.empty() || column(table.header, kAnchorNames) >= 0 ||
+      column(table.header, kRangeNames) >= 0)
+    return table;
+  const int ct = column(table.header, kTimeNames), ctag = column(table.header, kTagNames);
+  if (ct < 0) return table;                             // the reader names what the header lacks
+  std::vector<std::pair<size_t, std::string>> columns;  // (column, anchor)
+  std::vector<std::string> left_out;
+  for (size_t i = 0; i < table.header.size(); ++i) {
+    if (static_cast<int>(i) == ct || static_cast<int>(i) == ctag) continue;
+    const auto anchor = anchorOfColumn(table.header[i], anchor_names);
+    if (!anchor) {
+      left_out.push_back(loc::quoteToken(table.header[i]));
+      continue;
+    }
+    for (const auto& [other, a] : columns)
+      if (a == *anchor)
+        throwInputError(path, 1,
+                        "columns " + loc::quoteToken(table.header[other]) + " and " +
+                            loc::quoteToken(table.header[i]) + " both name anchor " + a);
+    columns.emplace_back(i, *anchor);
+  }
+  if (columns.empty()) {
+    std::string ids;
+    for (const auto& a : anchor_names) ids += (ids.empty() ? "" : ", ") + a;
+    throwInputError(path, 1,
+                    "the header must name the columns t, anchor_id and range, or t and one "
+                    "column per anchor of the anchors file (" +
+                        ids + ")");
+  }
+  Table long_table;
+  long_table.header = {"t", "anchor_id", "range"};
+  if (ctag >= 0) long_table.header.emplace_back("tag_id");
+  for (const auto& [line, f] : table.rows) {
+    if (f.size() != table.header.size())
+      throwInputError(path, line,
+                      "expected " + std::to_string(table.header.size()) +
+                          " fields like the header, got " + std::to_string(f.size()));
+    for (const auto& [i, anchor] : columns) {
+      const std::string& cell = f[i];
+      const std::string l = lower(cell);
+      if (l.empty() || l == "nan" || l == "-nan" || l == "na" || l == "n/a" || l == "-" ||
+          l == "null" || l == "none") {
+        ++s.skipped["range_empty_cell"];
+        continue;
+      }
+      if (isNumber(cell) && !(std::strtod(cell.c_str(), nullptr) > 0.0)) {
+        ++s.skipped["range_not_positive_cell"];
+        continue;
+      }
+      std::vector<std::string> row = {f[static_cast<size_t>(ct)], anchor, cell};
+      if (ctag >= 0) row.push_back(f[static_cast<size_t>(ctag)]);
+      long_table.rows.emplace_back(line, std::move(row));
+    }
+  }
+  std::string said = "The ranges are written one column per anchor: ";
+  for (size_t k = 0; k < columns.size(); ++k)
+    said += (k ? ", " : "") + loc::quoteToken(table.header[columns[k].first]) + " anchor " +
+            columns[k].second;
+  if (!left_out.empty()) {
+    said = "WARNING: " + path + ": " + said + "; left out, naming no anchor of the anchors file: ";
+    for (size_t k = 0; k < left_out.size(); ++k) said += (k ? ", " : "") + left_out[k];
+  }
+  s.notes.push_back(said);
+  if (long_table.rows.empty()) throwInputError(path, 0, "no range in any anchor's column");
+  return long_table;
+}
+
 // The ranges file's columns, from its header or its width.
 struct RangeColumns {
   int t = 0, anchor = 1, range = 2, tag = -1, rx = -1, fp = -1;
@@ -170,10 +290,10 @@ RangeColumns rangeColumns(const Table& table, const std::string& path) {
   RangeColumns c;
   c.width = table.rows.front().second.size();
   if (!table.header.empty()) {
-    c.t = column(table.header, {"t", "time", "timestamp"});
-    c.anchor = column(table.header, {"anchor_id", "anchor"});
-    c.range = column(table.header, {"range", "distance"});
-    c.tag = column(table.header, {"tag_id", "tag"});
+    c.t = column(table.header, kTimeNames);
+    c.anchor = column(table.header, kAnchorNames);
+    c.range = column(table.header, kRangeNames);
+    c.tag = column(table.header, kTagNames);
     c.rx = column(table.header, {"rx_power", "rx_power_dbm"});
     c.fp = column(table.header, {"fp_power", "fp_power_dbm"});
     if (c.t < 0 || c.anchor < 0 || c.range < 0)
@@ -595,7 +715,35 @@ ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_
   // Anchors and tags may be named (a device's "1C8D", "A3"): every integer id the files use is
   // seen first, then the names are numbered around them (anchors from 1, tags from 0, the tags
   // named by --tag first).
-  const Table range_table = readTable(req.ranges);
+  // Anchors written without heights ("id,x,y") are taken at the tag's: the ranges read as
+  // planar distances.
+  double tag_z = req.tag_height.value_or(0.0);
+  if (!req.tags.empty() || !req.tag_names.empty()) {
+    tag_z = 0.0;
+    for (const auto& [id, at] : req.tags) tag_z += at.z();
+    for (const auto& [name, at] : req.tag_names) tag_z += at.z();
+    tag_z /= static_cast<double>(req.tags.size() + req.tag_names.size());
+  }
+  std::vector<std::string> anchor_names;
+  {
+    IdNumbering scratch(1);
+    for (const auto& a : loadAnchorsCsv(req.anchors, &scratch, tag_z))
+      anchor_names.push_back(scratch.nameOf(a.id));
+  }
+  bool anchors_without_z = false;
+  forEachRow(req.anchors,
+             [&](int, const std::vector<std::string>& f) { anchors_without_z = f.size() == 3; });
+  if (anchors_without_z) {
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "WARNING: %s: the anchors have no height (id,x,y): they are taken at the tag's, "
+                  "%.3g m, so the ranges are read as distances in the plane; if the anchors are "
+                  "mounted higher or lower than the tag, give their z",
+                  req.anchors.c_str(), tag_z);
+    s.notes.emplace_back(buf);
+  }
+  const Table range_table =
+      rangesOneAnAnchorRow(readTable(req.ranges), anchor_names, req.ranges, s);
   const RangeColumns range_columns = rangeColumns(range_table, req.ranges);
   IdNumbering anchor_ids(1), tag_ids(0);
   for (const auto& [line, f] : range_table.rows) {
@@ -606,7 +754,7 @@ ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_
   }
   for (const auto& [id, at] : req.tags) tag_ids.see(std::to_string(id));
   for (const auto& [name, at] : req.tag_names) req.tags[tag_ids(name, "--tag", 0, "id")] = at;
-  auto anchors = loadAnchorsCsv(req.anchors, &anchor_ids);
+  auto anchors = loadAnchorsCsv(req.anchors, &anchor_ids, tag_z);
   const auto scaleAnchors = [&](double scale) {
     for (auto& a : anchors) a.position *= scale;
   };

@@ -102,12 +102,26 @@ std::string writeManifest(const std::string& dir, const ManifestDraft& draft) {
   return path;
 }
 
-std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* names) {
+std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* names,
+                                        std::optional<double> z_when_absent) {
   std::vector<std::pair<int, std::vector<std::string>>> rows;
+  bool header = false;
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
-    if (rows.empty() && !f.empty() && f[0] == "id") return;  // header
-    if (f.size() != 4)
-      throwInputError(path, line, "expected 4 fields 'id,x,y,z', got " + std::to_string(f.size()));
+    // A header: the first row, with no number among its coordinates ("id,x,y,z", "name;X;Y;Z").
+    if (rows.empty() && !header && f.size() >= 2 &&
+        std::none_of(f.begin() + 1, f.end(), [](const std::string& c) { return isNumber(c); })) {
+      header = true;
+      return;
+    }
+    if (f.size() != 4 && !(f.size() == 3 && z_when_absent))
+      throwInputError(path, line,
+                      std::string("expected 4 fields 'id,x,y,z'") +
+                          (z_when_absent ? " or 3 'id,x,y'" : "") + ", got " +
+                          std::to_string(f.size()));
+    if (!rows.empty() && f.size() != rows.front().second.size())
+      throwInputError(path, line,
+                      "expected " + std::to_string(rows.front().second.size()) +
+                          " fields like the first row, got " + std::to_string(f.size()));
     rows.emplace_back(line, f);
     if (names) names->see(f[0]);
   });
@@ -116,7 +130,7 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* na
     uwb::Anchor a;
     a.id = names ? (*names)(f[0], path, line, "id") : parseId(f[0], path, line, "id");
     a.position << parseNumber(f[1], path, line, "x"), parseNumber(f[2], path, line, "y"),
-        parseNumber(f[3], path, line, "z");
+        f.size() == 4 ? parseNumber(f[3], path, line, "z") : *z_when_absent;
     if (!a.position.allFinite()) throwInputError(path, line, "anchor coordinates must be finite");
     if (uwb::findAnchor(anchors, a.id))
       throwInputError(
