@@ -17,6 +17,7 @@
 #include "uwbloc/dataset/manifest.hpp"
 #include "uwbloc/dataset/memory_limits.hpp"
 #include "uwbloc/dataset/rawlog.hpp"
+#include "uwbloc/uwb/pose2.hpp"
 
 using namespace uwbloc;
 using data::InputError;
@@ -167,6 +168,42 @@ TEST(GroundTruth, QuaternionsWrittenScalarFirstOrAboutAnotherAxis) {
   ASSERT_EQ(said.size(), 1u);
   EXPECT_NE(said[0].find("y.tum: its quaternions tilt the vertical"), std::string::npos) << said[0];
   EXPECT_NE(said[0].find("cannot be trusted"), std::string::npos) << said[0];
+}
+
+// Headings written in degrees ('time x y phi') are read as degrees, loudly: as radians they do not
+// follow the travel. A robot driving a 2 m circle and a straight line back, forward then
+// backwards, heading 100 deg off the course on the way back (a body frame turned on the robot).
+TEST(GroundTruth, HeadingsWrittenInDegrees) {
+  const auto dir = test::scratchDir();
+  std::string radians, degrees;
+  std::vector<double> heading;
+  char buf[160];
+  for (int k = 0; k < 400; ++k) {
+    double x, y, yaw;
+    if (k < 200) {
+      const double a = 2.0 * M_PI * k / 200.0;
+      x = 2.0 * std::cos(a), y = 2.0 * std::sin(a), yaw = a + M_PI / 2;
+    } else {
+      x = 2.0 - 0.05 * (k - 200), y = 0.0, yaw = (k < 300 ? 0.0 : M_PI) + 100.0 * M_PI / 180.0;
+    }
+    heading.push_back(wrapAngle(yaw));
+    std::snprintf(buf, sizeof buf, "%.1f %.6f %.6f %.9f\n", 0.1 * k, x, y, yaw);
+    radians += buf;
+    std::snprintf(buf, sizeof buf, "%.1f %.6f %.6f %.9f\n", 0.1 * k, x, y, yaw * 180.0 / M_PI);
+    degrees += buf;
+  }
+  std::vector<std::string> said;
+  const auto as_radians = data::readGroundTruth(writeText(dir / "r.txt", radians),
+                                                data::GroundTruthFormat::kTimeXyPhi, {}, &said);
+  EXPECT_TRUE(said.empty()) << said.front();
+  const auto as_degrees = data::readGroundTruth(writeText(dir / "d.txt", degrees),
+                                                data::GroundTruthFormat::kTimeXyPhi, {}, &said);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_NE(said[0].find("d.txt: its headings are read as degrees"), std::string::npos) << said[0];
+  for (size_t k = 0; k < heading.size(); ++k) {
+    EXPECT_NEAR(wrapAngle(as_radians[k].pose.z() - heading[k]), 0.0, 1e-9) << k;
+    EXPECT_NEAR(wrapAngle(as_degrees[k].pose.z() - heading[k]), 0.0, 1e-9) << k;
+  }
 }
 
 TEST(Rawlog, DemoStreamMatchesTheKnownLayout) {

@@ -121,10 +121,12 @@ void ImportCommand::declare(CLI::App& parser) {
       ->check(CLI::IsMember({"auto", "m", "cm", "mm", "in", "ft"}))
       ->capture_default_str();
   cmd->add_option("--imu", csv_.imu, "csv: IMU 't,gx,gy,gz,ax,ay,az' [rad/s, m/s^2]");
-  cmd->add_option("--reference", csv_.reference,
-                  "csv: reference poses, TUM or 't,x,y[,theta]' (without theta no heading is "
-                  "scored); librsf: the ground-truth file (default: the _GT file beside the "
-                  "_Input file)");
+  cmd->add_option(
+      "--reference", csv_.reference,
+      "csv: reference poses, TUM or 't,x,y[,theta]' (without theta no heading is "
+      "scored; theta in radians, or in degrees when only that turns as the travel "
+      "does, with a warning); librsf: the ground-truth file (default: the _GT file beside the "
+      "_Input file)");
   cmd->add_option("--scans", csv_.scans,
                   "csv: LiDAR scans, one a row: 't,angle_min,angle_increment,r0,r1,...'");
   cmd->add_option("--tag", tags_,

@@ -581,10 +581,15 @@ std::vector<TimedPose> readReference(const CsvImportRequest& req, ImportSummary&
       if (!out.empty() && p.t < out.back().t) throwInputError(path, line, "time goes backwards");
       out.push_back(p);
     }
-    // TUM: the headings of the quaternions, read scalar first when only that is planar.
+    // TUM: the headings of the quaternions, read scalar first when only that is planar;
+    // 't,x,y,theta': read in degrees when only that follows the travel.
     std::vector<std::string> said;
-    const auto yaw = planarHeadings(quaternions, path, &said);
-    for (size_t i = 0; i < yaw.size(); ++i) out[i].pose.z() = yaw[i];
+    if (width == 8) {
+      const auto yaw = planarHeadings(quaternions, path, &said);
+      for (size_t i = 0; i < yaw.size(); ++i) out[i].pose.z() = yaw[i];
+    } else {
+      headingsInRadians(out, path, &said);
+    }
     for (const auto& w : said) s.notes.push_back("WARNING: " + w);
     return out;
   }

@@ -55,6 +55,60 @@ std::vector<double> planarHeadings(const std::vector<Eigen::Vector4d>& quaternio
   return yaw;
 }
 
+void headingsInRadians(std::vector<TimedPose>& poses, const std::string& path,
+                       std::vector<std::string>* warnings) {
+  constexpr double kStretch = 0.1, kMaxSpan = 5.0;  // [m], [s]
+  constexpr double kDegree = M_PI / 180.0, kTells = 5.0 * kDegree;
+  // Each stretch's course and its heading halfway along (the shorter arc), read as radians and
+  // as degrees.
+  struct Stretch {
+    double course, heading[2];
+  };
+  std::vector<Stretch> stretches;
+  size_t from = 0;
+  for (size_t i = 1; i < poses.size(); ++i) {
+    const Eigen::Vector3d& a = poses[from].pose;
+    const Eigen::Vector3d& b = poses[i].pose;
+    const Eigen::Vector2d d = b.head<2>() - a.head<2>();
+    if (poses[i].t - poses[from].t > kMaxSpan) {
+      from = i;
+      stretches.push_back({NAN, {NAN, NAN}});  // no turn across a stop or a gap
+      continue;
+    }
+    if (d.norm() < kStretch) continue;
+    Stretch s{std::atan2(d.y(), d.x()), {0.0, 0.0}};
+    for (int k = 0; k < 2; ++k) {
+      const double unit = k == 0 ? 1.0 : kDegree;
+      s.heading[k] = unit * a.z() + 0.5 * wrapAngle(unit * (b.z() - a.z()));
+    }
+    stretches.push_back(s);
+    from = i;
+  }
+  // The turn between two stretches, as the course turned and as the heading did in each reading
+  // (axial: a change from forward to reverse turns the course by pi and the heading not).
+  long tells = 0, degrees = 0;
+  for (size_t i = 1; i < stretches.size(); ++i) {
+    const Stretch &p = stretches[i - 1], &q = stretches[i];
+    if (!std::isfinite(p.course) || !std::isfinite(q.course)) continue;
+    const double turn = q.course - p.course;
+    double off[2];
+    for (int k = 0; k < 2; ++k)
+      off[k] = std::abs(0.5 * wrapAngle(2.0 * (q.heading[k] - p.heading[k] - turn)));
+    if (std::abs(off[0] - off[1]) < kTells) continue;  // the two readings turn alike
+    ++tells;
+    degrees += off[1] < off[0];
+  }
+  if (tells < 20 || degrees < 0.8 * static_cast<double>(tells)) return;
+  for (auto& p : poses) p.pose.z() = wrapAngle(kDegree * p.pose.z());
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "%s: its headings are read as degrees: as radians they do not turn as the "
+                "direction of travel does (as degrees they follow it in %ld of the %ld turns "
+                "where the two readings differ)",
+                path.c_str(), degrees, tells);
+  if (warnings) warnings->push_back(buf);
+}
+
 std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthFormat format,
                                        const std::vector<double>& step_times,
                                        std::vector<std::string>* warnings) {
@@ -109,6 +163,8 @@ std::vector<TimedPose> readGroundTruth(const std::string& path, GroundTruthForma
   if (!quaternions.empty()) {
     const auto yaw = planarHeadings(quaternions, path, warnings);
     for (size_t i = 0; i < out.size(); ++i) out[i].pose.z() = yaw[i];
+  } else {
+    headingsInRadians(out, path, warnings);
   }
   return out;
 }
