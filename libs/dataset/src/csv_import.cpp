@@ -717,9 +717,6 @@ ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_
   CsvImportRequest req = request;
   ImportSummary s;
   std::vector<loc::Event> events;
-  // Anchors and tags may be named (a device's "1C8D", "A3"): every integer id the files use is
-  // seen first, then the names are numbered around them (anchors from 1, tags from 0, the tags
-  // named by --tag first).
   // Anchors written without heights ("id,x,y") are taken at the tag's: the ranges read as
   // planar distances.
   double tag_z = req.tag_height.value_or(0.0);
@@ -747,6 +744,9 @@ ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_
                   req.anchors.c_str(), tag_z);
     s.notes.emplace_back(buf);
   }
+  // Anchors and tags may be named (a device's "1C8D", "A3"): every integer id the files use is
+  // seen first, then the names are numbered around them (anchors from 1, tags from 0, the tags
+  // named by --tag first).
   const Table range_table =
       rangesOneAnAnchorRow(readTable(req.ranges), anchor_names, req.ranges, s);
   const RangeColumns range_columns = rangeColumns(range_table, req.ranges);
