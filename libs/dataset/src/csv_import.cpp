@@ -726,15 +726,15 @@ ImportSummary importCsv(const CsvImportRequest& request, const std::string& out_
     for (const auto& [name, at] : req.tag_names) tag_z += at.z();
     tag_z /= static_cast<double>(req.tags.size() + req.tag_names.size());
   }
+  // The anchors' ids as written (a ranges file may name them in its header) and whether they
+  // have heights, before the ids are numbered with the ranges'.
   std::vector<std::string> anchor_names;
+  bool anchors_without_z = false;
   {
     IdNumbering scratch(1);
-    for (const auto& a : loadAnchorsCsv(req.anchors, &scratch, tag_z))
+    for (const auto& a : loadAnchorsCsv(req.anchors, &scratch, tag_z, &anchors_without_z))
       anchor_names.push_back(scratch.nameOf(a.id));
   }
-  bool anchors_without_z = false;
-  forEachRow(req.anchors,
-             [&](int, const std::vector<std::string>& f) { anchors_without_z = f.size() == 3; });
   if (anchors_without_z) {
     char buf[400];
     std::snprintf(buf, sizeof buf,

@@ -103,7 +103,7 @@ std::string writeManifest(const std::string& dir, const ManifestDraft& draft) {
 }
 
 std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* names,
-                                        std::optional<double> z_when_absent) {
+                                        std::optional<double> z_when_absent, bool* without_z) {
   std::vector<std::pair<int, std::vector<std::string>>> rows;
   bool header = false;
   forEachRow(path, [&](int line, const std::vector<std::string>& f) {
@@ -139,6 +139,7 @@ std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* na
     anchors.push_back(a);
   }
   if (anchors.empty()) throwInputError(path, 0, "no anchors");
+  if (without_z) *without_z = rows.front().second.size() == 3;
   return anchors;
 }
 

@@ -116,9 +116,10 @@ class IdNumbering;  // text_io.hpp
 /// Loads anchors from a CSV of "id,x,y,z" rows (a header row, the first with no number among its
 /// coordinates, is allowed). With `names`, an id may be a name, numbered by it (after it has seen
 /// every integer id of the file); without, it must be an integer. With `z_when_absent`, a file of
-/// "id,x,y" rows is read too, every anchor at that height.
+/// "id,x,y" rows is read too, every anchor at that height (`*without_z` says so, when given).
 std::vector<uwb::Anchor> loadAnchorsCsv(const std::string& path, IdNumbering* names = nullptr,
-                                        std::optional<double> z_when_absent = std::nullopt);
+                                        std::optional<double> z_when_absent = std::nullopt,
+                                        bool* without_z = nullptr);
 /// The same CSV, with its header.
 std::string formatAnchorsCsv(const std::vector<uwb::Anchor>& anchors);
 
