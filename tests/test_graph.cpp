@@ -470,6 +470,60 @@ TEST(RangeSlam, RobustLossAgainstNlosOutliers) {
   }
 }
 
+// The cross-validation's two settings: a factor f on the odometry edges' std solves as the model
+// with every std times f, and an anchor left out solves as the graph without its ranges (5 m
+// wrong here), whose residuals are still reported.
+TEST(RangeSlam, OdometryFactorAndALeftOutAnchor) {
+  const Synthetic s(7, 0.0);
+  RangeGraphParams scaled;
+  scaled.odometry_sigma = {0.02, 0.02, 0.005};
+  scaled.odometry_sigma_factor = 4.0;
+  RangeGraphParams wide = scaled;
+  wide.odometry_sigma *= 4.0;
+  wide.odometry_sigma_factor = 1.0;
+  RangeGraph a = s.graph(s.anchors), b = s.graph(s.anchors);
+  a.build(scaled);
+  b.build(wide);
+  ASSERT_TRUE(a.solve().usable);
+  ASSERT_TRUE(b.solve().usable);
+  for (size_t k = 0; k < a.poses(); ++k) EXPECT_LT((a.pose(k) - b.pose(k)).norm(), 1e-6) << k;
+
+  RangeGraph left;     // anchor 1's ranges 5 m long, left out
+  RangeGraph without;  // the same graph without them
+  without.setAnchors(s.anchors);
+  for (const auto& p : s.dead_reckoning) without.addPose(p);
+  for (size_t k = 0; k + 1 < s.truth.size(); ++k)
+    without.addOdometry(static_cast<int>(k), static_cast<int>(k + 1), s.increments[k]);
+  for (size_t k = 0; k < s.truth.size(); ++k)
+    for (size_t i = 1; i < s.anchors.size(); ++i)
+      without.addRange(static_cast<int>(k), s.anchors[i].id, s.ranges[k][i], s.tag);
+  left.setAnchors(s.anchors);
+  for (const auto& p : s.dead_reckoning) left.addPose(p);
+  for (size_t k = 0; k + 1 < s.truth.size(); ++k)
+    left.addOdometry(static_cast<int>(k), static_cast<int>(k + 1), s.increments[k]);
+  for (size_t k = 0; k < s.truth.size(); ++k)
+    for (size_t i = 0; i < s.anchors.size(); ++i)
+      left.addRange(static_cast<int>(k), s.anchors[i].id, s.ranges[k][i] + (i == 0 ? 5.0 : 0.0),
+                    s.tag);
+  RangeGraphParams out;
+  out.odometry_sigma = {0.02, 0.02, 0.005};
+  without.build(out);
+  out.left_out_anchor = 0;
+  left.build(out);
+  ASSERT_TRUE(left.solve().usable);
+  ASSERT_TRUE(without.solve().usable);
+  for (size_t k = 0; k < left.poses(); ++k)
+    EXPECT_LT((left.pose(k) - without.pose(k)).norm(), 1e-6) << k;
+  EXPECT_LT(s.poseRmse(left), 0.05);
+  const auto residuals = left.rangeResiduals();
+  ASSERT_EQ(residuals.size(), s.truth.size() * s.anchors.size());
+  std::vector<double> held;
+  for (const auto& [id, e] : residuals)
+    if (id == s.anchors[0].id) held.push_back(e);
+  ASSERT_EQ(held.size(), s.truth.size());
+  EXPECT_NEAR(loc::medianOf(held), 5.0, 0.05);
+}
+
 TEST(PoseGraph, MrptCircleGraph) {
   const auto g =
       uwbloc::data::readPoseGraph2D("/usr/share/mrpt/datasets/graph_2d_circle_50nodes.graph");

@@ -83,6 +83,7 @@ const std::vector<ParamLimit>& paramLimits() {
       {"odom_xy_per_m", 0, 1e3, false, ""},
       {"odom_th", 0, 1e3, true, "[rad]"},
       {"odom_th_per_rad", 0, 1e3, false, ""},
+      {"odom_noise", 0, 1e3, true, "a factor on the odometry edges' std"},
       {"anchor_prior", 0, 1e3, true, "[m]"},
       {"iterations", 1, 1e5, false, "solver iterations"},
       {"landmark_min_obs", 1, 1e6, false, ""},

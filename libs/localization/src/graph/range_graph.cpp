@@ -21,6 +21,11 @@ void RangeGraph::holdPose(int pose) {
   problem_->SetParameterBlockConstant(poses_[static_cast<size_t>(pose)].data());
 }
 
+void RangeGraph::holdRangeModel() {
+  for (auto& b : biases_) problem_->SetParameterBlockConstant(&b);
+  problem_->SetParameterBlockConstant(&scale_);
+}
+
 int RangeGraph::addPose(const Eigen::Vector3d& initial) {
   poses_.push_back(initial);
   return static_cast<int>(poses_.size()) - 1;
@@ -126,6 +131,7 @@ void RangeGraph::build(const RangeGraphParams& params) {
   for (auto& b : biases_) p.AddParameterBlock(&b, 1);
   p.AddParameterBlock(&scale_, 1);
   for (const auto& r : ranges_) {
+    if (r.anchor == params_.left_out_anchor) continue;
     ceres::LossFunction* loss = nullptr;
     if (params_.loss == RobustLoss::kHuber)
       loss = new ceres::HuberLoss(params_.loss_scale);
@@ -148,9 +154,12 @@ void RangeGraph::build(const RangeGraphParams& params) {
   }
   const Eigen::Matrix3d default_sqrt_information =
       params_.odometry_sigma.cwiseInverse().asDiagonal();
+  const double odometry_weight = 1.0 / params_.odometry_sigma_factor;
   for (const auto& o : odometry_)
     p.AddResidualBlock(
-        RelativePoseCost::Create(o.delta, o.sqrt_information.value_or(default_sqrt_information)),
+        RelativePoseCost::Create(
+            o.delta, Eigen::Matrix3d(odometry_weight *
+                                     o.sqrt_information.value_or(default_sqrt_information))),
         nullptr, poses_[static_cast<size_t>(o.from)].data(),
         poses_[static_cast<size_t>(o.to)].data());
   for (const auto& e : constant_velocity_)
@@ -289,6 +298,7 @@ RangeGraph::VarianceComponents RangeGraph::estimateVarianceComponents() {
   const double sigma = params_.range_sigma;
   double weighted_sq = 0.0, redundancy = 0.0, pose_leverage = 0.0;
   for (const auto& r : ranges_) {
+    if (r.anchor == params_.left_out_anchor) continue;
     Eigen::Vector3d g;
     // Normalised by the range's own variance scale (1 unless an NLOS model doubted it).
     const double root = std::sqrt(r.variance_scale);

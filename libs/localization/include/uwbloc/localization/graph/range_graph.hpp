@@ -35,6 +35,11 @@ struct RangeGraphParams {
   RobustLoss loss = RobustLoss::kCauchy;             ///< on the whitened range residuals
   double loss_scale = 2.0;                           ///< robust-loss scale, in standard deviations
   Eigen::Vector3d odometry_sigma{0.05, 0.05, 0.02};  ///< per odometry edge [m, m, rad]
+  /// Multiplies the std of every odometry edge (its own or odometry_sigma)
+  double odometry_sigma_factor = 1.0;
+  /// Cross-validation: the ranges to the anchor of this index are left out of the problem
+  /// (-1: none); rangeResiduals() still gives theirs
+  int left_out_anchor = -1;
   bool estimate_anchors = false;    ///< anchors' x, y as vertices with a prior (z is held)
   double anchor_prior_sigma = 0.5;  ///< [m]
   bool estimate_bias = false;       ///< a range bias per anchor
@@ -162,6 +167,8 @@ class RangeGraph {
   void restore(const Values& v);
   /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
   void holdPose(int pose);
+  /// Holds the range biases and the scale at their values (after build()).
+  void holdRangeModel();
 
   size_t poses() const { return poses_.size(); }
   size_t ranges() const { return ranges_.size(); }

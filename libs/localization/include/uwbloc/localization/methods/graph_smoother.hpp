@@ -36,6 +36,9 @@ struct GraphSmootherParams {
   double odom_sigma_xy_per_m = 0.05;                    ///< ... plus this per metre moved
   double odom_sigma_theta = 0.005;                      ///< per increment [rad] ...
   double odom_sigma_theta_per_rad = 0.05;               ///< ... plus this per radian turned
+  /// A factor on the odometry model's std; auto: learnt by leave-one-anchor-out
+  /// cross-validation (crossValidatedOdometryFactor)
+  AutoDouble odom_noise;
   GraphMotion motion = GraphMotion::kOdometry;          ///< what links the pose vertices
   AutoDouble accel_psd;  ///< motion=cv: q [m^2/s^3]; auto: estimated with the range std
   BiasMode bias = BiasMode::kAuto;                      ///< a range bias per anchor
@@ -73,6 +76,11 @@ struct GraphSmootherParams {
     v("odom_xy_per_m", odom_sigma_xy_per_m, "odometry edge std per metre moved");
     v("odom_th", odom_sigma_theta, "odometry edge heading std per increment [rad]");
     v("odom_th_per_rad", odom_sigma_theta_per_rad, "odometry edge heading std per radian turned");
+    v("odom_noise", odom_noise,
+      "a factor on the odometry edges' std (the four odom_* above), or auto: motion=odom without "
+      "a front end learns it by cross-validation (each anchor's ranges predicted by the path "
+      "solved without them; the model is halved, down to 1/64, while that prediction improves "
+      "beyond chance)");
     v("motion", motion,
       "what links the pose vertices: odom (a vertex per odometry increment) or cv (ranges "
       "alone: a vertex per range time, a constant-velocity prior between them)");
@@ -168,8 +176,19 @@ class GraphSmoother : public UwbEstimator {
   bool online() const { return front_ && params_.window > 0; }
   graph::RangeGraphParams graphParams() const;
   /// Solves the batch graph: with sigma=auto, the range std by variance-component estimation
-  /// first (no bias), then the biases when `bias` says so; fills the estimated noise.
+  /// first (no bias), then the biases when `bias` says so, then the odometry model's factor
+  /// (odom_noise=auto, with the range std learnt again); fills the estimated noise.
   void solveBatch(graph::RangeGraph& g);
+  /// odom_noise=auto: leave-one-anchor-out cross-validation of the odometry model's scale. For
+  /// a factor f on the odometry edges' std, each anchor's ranges are left out in turn, the graph
+  /// is solved from the current solution without them, and their residuals about their own
+  /// median are scored by the robust loss (at the range std in `p`); f's score is the mean over
+  /// every held-out range. Starting at the factor in `p`, f is halved (down to 1/64) while the
+  /// held-out ranges' losses fall beyond chance (a paired test over blocks of consecutive
+  /// ranges). Returns the last factor that passed (the one in `p` when fewer than two anchors
+  /// have ranges to hold out, or a solve fails); the graph is left at the solution it started
+  /// from.
+  double crossValidatedOdometryFactor(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   /// Solves; counts an unusable solution and returns false.
   bool solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   Eigen::Vector3d priorSigma(const PoseEstimate& e) const;
