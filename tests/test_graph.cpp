@@ -488,23 +488,21 @@ TEST(RangeSlam, OdometryFactorAndALeftOutAnchor) {
   ASSERT_TRUE(b.solve().usable);
   for (size_t k = 0; k < a.poses(); ++k) EXPECT_LT((a.pose(k) - b.pose(k)).norm(), 1e-6) << k;
 
-  RangeGraph left;     // anchor 1's ranges 5 m long, left out
-  RangeGraph without;  // the same graph without them
-  without.setAnchors(s.anchors);
-  for (const auto& p : s.dead_reckoning) without.addPose(p);
-  for (size_t k = 0; k + 1 < s.truth.size(); ++k)
-    without.addOdometry(static_cast<int>(k), static_cast<int>(k + 1), s.increments[k]);
-  for (size_t k = 0; k < s.truth.size(); ++k)
-    for (size_t i = 1; i < s.anchors.size(); ++i)
-      without.addRange(static_cast<int>(k), s.anchors[i].id, s.ranges[k][i], s.tag);
-  left.setAnchors(s.anchors);
-  for (const auto& p : s.dead_reckoning) left.addPose(p);
-  for (size_t k = 0; k + 1 < s.truth.size(); ++k)
-    left.addOdometry(static_cast<int>(k), static_cast<int>(k + 1), s.increments[k]);
-  for (size_t k = 0; k < s.truth.size(); ++k)
-    for (size_t i = 0; i < s.anchors.size(); ++i)
-      left.addRange(static_cast<int>(k), s.anchors[i].id, s.ranges[k][i] + (i == 0 ? 5.0 : 0.0),
-                    s.tag);
+  // The synthetic graph from anchor index `first` on, anchor 0's ranges 5 m long.
+  auto graphFrom = [&](size_t first) {
+    RangeGraph g;
+    g.setAnchors(s.anchors);
+    for (const auto& p : s.dead_reckoning) g.addPose(p);
+    for (size_t k = 0; k + 1 < s.truth.size(); ++k)
+      g.addOdometry(static_cast<int>(k), static_cast<int>(k + 1), s.increments[k]);
+    for (size_t k = 0; k < s.truth.size(); ++k)
+      for (size_t i = first; i < s.anchors.size(); ++i)
+        g.addRange(static_cast<int>(k), s.anchors[i].id, s.ranges[k][i] + (i == 0 ? 5.0 : 0.0),
+                   s.tag);
+    return g;
+  };
+  RangeGraph left = graphFrom(0);     // anchor 0's wrong ranges, left out
+  RangeGraph without = graphFrom(1);  // the same graph without them
   RangeGraphParams out;
   out.odometry_sigma = {0.02, 0.02, 0.005};
   without.build(out);
