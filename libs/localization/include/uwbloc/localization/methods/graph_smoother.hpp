@@ -177,17 +177,17 @@ class GraphSmoother : public UwbEstimator {
   graph::RangeGraphParams graphParams() const;
   /// Solves the batch graph: with sigma=auto, the range std by variance-component estimation
   /// first (no bias), then the biases when `bias` says so, then the odometry model's factor
-  /// (odom_noise=auto, with the range std learnt again); fills the estimated noise.
+  /// (odom_noise=auto; the range std stays); fills the estimated noise.
   void solveBatch(graph::RangeGraph& g);
   /// odom_noise=auto: leave-one-anchor-out cross-validation of the odometry model's scale. For
   /// a factor f on the odometry edges' std, each anchor's ranges are left out in turn, the graph
   /// is solved from the current solution without them, and their residuals about their own
-  /// median are scored by the robust loss (at the range std in `p`); f's score is the mean over
-  /// every held-out range. Starting at the factor in `p`, f is halved (down to 1/64) while the
-  /// held-out ranges' losses fall beyond chance (a paired test over blocks of consecutive
-  /// ranges). Returns the last factor that passed (the one in `p` when fewer than two anchors
-  /// have ranges to hold out, or a solve fails); the graph is left at the solution it started
-  /// from.
+  /// median are scored by the robust loss (at the residuals' pooled spread about each anchor's
+  /// median; the biases and the scale held). Starting at the factor in `p`, f is halved (down to
+  /// 1/64) while the held-out ranges' losses fall beyond chance (a paired test over blocks of
+  /// consecutive ranges). Returns the last factor that passed (the one in `p` when fewer than
+  /// two anchors have ranges to hold out, or a solve fails); the graph is left at the solution it
+  /// started from.
   double crossValidatedOdometryFactor(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   /// Solves; counts an unusable solution and returns false.
   bool solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p);
