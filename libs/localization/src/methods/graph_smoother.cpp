@@ -496,11 +496,11 @@ double GraphSmoother::crossValidatedOdometryFactor(graph::RangeGraph& g,
   auto better = [](const std::vector<double>& candidate, const std::vector<double>& incumbent) {
     const size_t blocks = candidate.size() / kCvBlock;
     if (blocks < kCvMinBlocks) return false;
-    std::vector<double> mean(blocks, 0.0);
-    for (size_t i = 0; i < blocks * kCvBlock; ++i)
-      mean[i / kCvBlock] += (incumbent[i] - candidate[i]) / static_cast<double>(kCvBlock);
-    double sum = 0.0, sum_sq = 0.0;
-    for (const double d : mean) {
+    double sum = 0.0, sum_sq = 0.0;  // of the blocks' mean differences
+    for (size_t b = 0; b < blocks; ++b) {
+      double d = 0.0;
+      for (size_t i = b * kCvBlock; i < (b + 1) * kCvBlock; ++i) d += incumbent[i] - candidate[i];
+      d /= static_cast<double>(kCvBlock);
       sum += d;
       sum_sq += d * d;
     }

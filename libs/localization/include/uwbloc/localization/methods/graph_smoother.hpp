@@ -185,9 +185,9 @@ class GraphSmoother : public UwbEstimator {
   /// median are scored by the robust loss (at the residuals' pooled spread about each anchor's
   /// median; the biases and the scale held). Starting at the factor in `p`, f is halved (down to
   /// 1/64) while the held-out ranges' losses fall beyond chance (a paired test over blocks of
-  /// consecutive ranges). Returns the last factor that passed (the one in `p` when fewer than
-  /// two anchors have ranges to hold out, or a solve fails); the graph is left at the solution it
-  /// started from.
+  /// consecutive ranges) and the solves succeed. Returns the last factor that passed (the one in
+  /// `p` when fewer than two anchors have ranges to hold out); the graph is left at the solution
+  /// it started from.
   double crossValidatedOdometryFactor(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   /// Solves; counts an unusable solution and returns false.
   bool solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p);
