@@ -406,6 +406,45 @@ TEST(RangeMixture, TheLinksNlosStateRelaxesTowardTheMixturesShare) {
   EXPECT_EQ(track.prior(1, 0, 10.0, w), w);
 }
 
+// The graph's range residual under the mixture: f^2 / 2 is the negative log-density (with its
+// floor) up to a constant, f is zero at the density's mode and increases through it, its slope
+// agrees with central differences, and a range far shorter than the distance stops pulling.
+TEST(RangeMixture, GraphResidualIsTheRootOfTheNegativeLogDensity) {
+  RangeMixture m;
+  m.nlos_fraction = 0.4;
+  m.sigma = 0.1;
+  m.nlos_mean = 0.5;
+  const uwbloc::loc::MixtureResidual f(m, 0.12);
+  EXPECT_NEAR(f(f.mode()), 0.0, 1e-6);
+  EXPECT_GT(f.mode(), 0.0);  // the NLOS excess moves the mode to longer ranges
+  EXPECT_LT(f.mode(), 0.12);
+  // 0.5 (f(a)^2 - f(b)^2) = log q(b) - log q(a), q = p + the floor, the LOS part's density 4
+  // stds out.
+  const double floor = 0.6 * std::exp(-8.0) / (0.12 * std::sqrt(2.0 * M_PI));
+  const auto log_q = [&](double e) { return std::log(std::exp(m.logDensity(e, 0.12)) + floor); };
+  for (const double a : {-0.3, -0.1, 0.05, 0.4, 1.0})
+    for (const double b : {-0.2, 0.2, 0.8}) {
+      const double expected = log_q(b) - log_q(a);
+      EXPECT_NEAR(0.5 * (f(a) * f(a) - f(b) * f(b)), expected, 1e-6) << a << " " << b;
+    }
+  double previous = -1e9;
+  for (double e = -0.6; e < 3.0; e += 0.01) {
+    double slope = 0.0;
+    const double v = f(e, &slope);
+    const double h = 1e-6;
+    EXPECT_NEAR(slope, (f(e + h) - f(e - h)) / (2.0 * h), 1e-4 * std::max(1.0, slope)) << e;
+    EXPECT_GE(slope, 0.0) << e;
+    EXPECT_GT(v, previous) << e;
+    previous = v;
+  }
+  // Short by 6 stds, beyond the floor at 4: no pull left; long by 1 m, still a pull.
+  double slope = 1.0;
+  f(-0.72, &slope);
+  EXPECT_LT(slope, 1e-3);
+  f(1.0, &slope);
+  EXPECT_GT(slope, 0.5);
+}
+
 namespace {
 /// Residuals of three anchors: LOS N(0, 0.1), a share `w` of them long by Exp(mean 0.5); the
 /// third anchor's shifted by `bias3`.

@@ -123,6 +123,59 @@ double RangeMixture::logDensity(double e, double sigma_eff) const {
   return mixtureLogDensity(e, nlos_fraction, std::max(sigma_eff, 1e-6), nlos_mean);
 }
 
+MixtureResidual::MixtureResidual(const RangeMixture& mixture, double sigma_eff, double floor_k)
+    : mixture_(mixture), sigma_(std::max(sigma_eff, 1e-6)) {
+  log_floor_ = std::log1p(-mixture_.nlos_fraction) - 0.5 * floor_k * floor_k -
+               std::log(sigma_ * std::sqrt(2.0 * M_PI));
+  // The mode: the best of a grid over the LOS part and the NLOS excess, then golden-section
+  // search within a grid step of it (the density is unimodal there).
+  const double lo = -3.0 * sigma_, hi = 3.0 * sigma_ + 2.0 * mixture_.nlos_mean;
+  constexpr int kGrid = 200;
+  const double step = (hi - lo) / kGrid;
+  double best = lo, best_l = logDensity(lo, nullptr);
+  for (int i = 1; i <= kGrid; ++i)
+    if (const double e = lo + i * step, l = logDensity(e, nullptr); l > best_l) {
+      best = e;
+      best_l = l;
+    }
+  const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+  double a = best - step, b = best + step;
+  for (int i = 0; i < 60; ++i) {
+    const double c = b - ratio * (b - a), d = a + ratio * (b - a);
+    if (logDensity(c, nullptr) > logDensity(d, nullptr))
+      b = d;
+    else
+      a = c;
+  }
+  mode_ = 0.5 * (a + b);
+  log_mode_ = std::max(logDensity(mode_, nullptr), best_l);
+  // -L'' at the mode, by central differences of L'.
+  const double h = 1e-3 * sigma_;
+  double up = 0.0, down = 0.0;
+  logDensity(mode_ + h, &up);
+  logDensity(mode_ - h, &down);
+  slope_at_mode_ = std::sqrt(std::max((down - up) / (2.0 * h), 1e-12));
+}
+
+double MixtureResidual::logDensity(double e, double* slope) const {
+  using Jet = ceres::Jet<double, 1>;
+  const Jet l = mixtureLogDensity(Jet(e, 0), Jet(mixture_.nlos_fraction), Jet(sigma_),
+                                  Jet(mixture_.nlos_mean));
+  // log(exp(l) + exp(floor)), and its slope: the floor's share of the density has none.
+  const double hi = std::max(l.a, log_floor_);
+  const double total = hi + std::log(std::exp(l.a - hi) + std::exp(log_floor_ - hi));
+  if (slope) *slope = l.v[0] * std::exp(l.a - total);
+  return total;
+}
+
+double MixtureResidual::operator()(double e, double* slope) const {
+  double l_slope = 0.0;
+  const double l = logDensity(e, slope ? &l_slope : nullptr);
+  const double f = std::copysign(std::sqrt(2.0 * std::max(log_mode_ - l, 0.0)), e - mode_);
+  if (slope) *slope = std::abs(f) > 1e-3 ? -l_slope / f : slope_at_mode_;
+  return f;
+}
+
 double RangeMixture::nlosPosterior(double e, double sigma_eff, double prior) const {
   const auto parts = partLogDensities(e, std::max(sigma_eff, 1e-6), nlos_mean);
   if (!parts.has_nlos) return 0.0;

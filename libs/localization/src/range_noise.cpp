@@ -124,6 +124,9 @@ LearningStart makeLearningStart(const AutoDouble& sigma, const AutoDouble* q,
   std::ostringstream spec;
   spec << "graph-uwb:sigma=" << sigma << ",bias=" << enumName(learning.calib_bias);
   if (q) spec << ",q=" << *q;
+  // The ranges' own model as before the graph took the NLOS mixture (the filters learn the
+  // mixture from the residuals themselves).
+  spec << ",nlos_mixture=0";
   // Everything of the context that graph-uwb reads (not the map, nor the NLOS models: a spec
   // without nlos_model never asks for one).
   Fingerprint f;

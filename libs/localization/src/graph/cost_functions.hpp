@@ -6,6 +6,10 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <memory>
+#include <utility>
+
+#include "uwbloc/localization/range_mixture.hpp"
 
 namespace uwbloc::loc::graph {
 
@@ -56,6 +60,37 @@ struct RangeCost {
   const double range_;         ///< measured range [m]
   const Eigen::Vector3d tag_;  ///< tag on the robot (lever arm x, y; height z) [m]
   const double inv_sigma_;     ///< whitening: 1 / range std
+};
+
+/// A range under an NLOS mixture (RangeGraphParams::range_mixture): the residual
+/// e = z - (1 + s) d - b of RangeCost (unwhitened) passed through the mixture's
+/// MixtureResidual, its derivative carried by the chain rule. Parameters as RangeCost.
+struct MixtureRangeCost {
+  MixtureRangeCost(double range, const Eigen::Vector3d& tag,
+                   std::shared_ptr<const MixtureResidual> shape)
+      : range_(range, tag, 1.0), shape_(std::move(shape)) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* anchor, const T* bias, const T* scale,
+                  T* residual) const {
+    T e;
+    range_(pose, anchor, bias, scale, &e);
+    residual[0] = apply(e);
+    return true;
+  }
+  double apply(double e) const { return (*shape_)(e); }
+  template <int N>
+  ceres::Jet<double, N> apply(const ceres::Jet<double, N>& e) const {
+    double slope = 0.0;
+    const double f = (*shape_)(e.a, &slope);
+    return ceres::Jet<double, N>(f, slope * e.v);
+  }
+  static ceres::CostFunction* Create(double range, const Eigen::Vector3d& tag,
+                                     std::shared_ptr<const MixtureResidual> shape) {
+    return new ceres::AutoDiffCostFunction<MixtureRangeCost, 1, 3, 3, 1, 1>(
+        new MixtureRangeCost(range, tag, std::move(shape)));
+  }
+  const RangeCost range_;
+  const std::shared_ptr<const MixtureResidual> shape_;
 };
 
 /// Relative pose between two poses against a measured increment (odometry or ICP):

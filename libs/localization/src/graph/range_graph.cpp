@@ -130,8 +130,21 @@ void RangeGraph::build(const RangeGraphParams& params) {
     p.AddParameterBlock(a.position.data(), 3, new ceres::SubsetManifold(3, {2}));
   for (auto& b : biases_) p.AddParameterBlock(&b, 1);
   p.AddParameterBlock(&scale_, 1);
+  // Under a mixture, one residual shape per variance scale (most ranges share one).
+  std::map<double, std::shared_ptr<const MixtureResidual>> shapes;
   for (const auto& r : ranges_) {
     if (r.anchor == params_.left_out_anchor) continue;
+    if (params_.range_mixture) {
+      auto& shape = shapes[r.variance_scale];
+      if (!shape)
+        shape = std::make_shared<const MixtureResidual>(
+            *params_.range_mixture, params_.range_mixture->sigma * std::sqrt(r.variance_scale));
+      p.AddResidualBlock(MixtureRangeCost::Create(r.range, r.tag, shape), nullptr,
+                         poses_[static_cast<size_t>(r.pose)].data(),
+                         anchors_[static_cast<size_t>(r.anchor)].position.data(),
+                         &biases_[biasIndex(r.anchor)], &scale_);
+      continue;
+    }
     ceres::LossFunction* loss = nullptr;
     if (params_.loss == RobustLoss::kHuber)
       loss = new ceres::HuberLoss(params_.loss_scale);

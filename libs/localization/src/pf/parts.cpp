@@ -176,6 +176,9 @@ std::optional<Calibration> UwbRangeMeasurement::calibration() const {
   // ways by up to 0.007 m on the simulated rooms (agv_room 0.024 -> 0.019, tracking_los 0.042 ->
   // 0.048 m) and nothing else (`uwbloc benchmark --seeds 1`, the fused filters unchanged).
   spec << ",odom_noise=1";
+  // The path's residuals under the robust loss (the particle filters learn their own mixture
+  // from them, not from a path already solved under one).
+  spec << ",nlos_mixture=0";
   Calibration c{spec.str(), params_.calib, {}, 0.0};
   if (learn_at_lidar_) {
     // Its particles stay at the last odometry increment between increments (carry=0): carried to

@@ -43,6 +43,28 @@ struct RangeMixture {
   bool outside(double e, double sigma_eff, double k) const;
 };
 
+/// A range edge's residual under a RangeMixture, for a least-squares solver: with L(e) the
+/// log-density (the mixture at std `sigma_eff`, plus a floor at the LOS part's density
+/// `floor_k` stds out, so that a range neither part explains stops pulling) and e* its mode,
+///   f(e) = sign(e - e*) sqrt(2 (L(e*) - L(e))),
+/// so that f^2 / 2 is the negative log-likelihood up to a constant, and f is smooth and
+/// increasing through the mode (f' = -L'(e) / f, and sqrt(-L''(e*)) at the mode). A range that
+/// reads long by the NLOS excess costs little; one as short costs as much as a Gaussian's.
+class MixtureResidual {
+ public:
+  MixtureResidual(const RangeMixture& mixture, double sigma_eff, double floor_k = 4.0);
+  /// f(e), and f'(e) when `slope` is given.
+  double operator()(double e, double* slope = nullptr) const;
+  double mode() const { return mode_; }
+
+ private:
+  /// L(e) and, when given, L'(e).
+  double logDensity(double e, double* slope) const;
+  RangeMixture mixture_;
+  double sigma_, log_floor_;
+  double mode_ = 0.0, log_mode_ = 0.0, slope_at_mode_ = 1.0;
+};
+
 /// Each link's (anchor and tag) NLOS state, tracked as a two-state Markov chain over its ranges.
 /// An anchor stays out of sight while the robot crosses a room, so the state persists from one
 /// range to the next; the mixture's w is only its share over the whole run. The chance that a

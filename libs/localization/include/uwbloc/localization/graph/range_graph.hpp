@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "uwbloc/localization/params.hpp"
+#include "uwbloc/localization/range_mixture.hpp"
 #include "uwbloc/uwb/types.hpp"
 
 namespace ceres {
@@ -34,6 +35,9 @@ struct RangeGraphParams {
   double range_sigma = 0.1;                          ///< std of a range [m]
   RobustLoss loss = RobustLoss::kCauchy;             ///< on the whitened range residuals
   double loss_scale = 2.0;                           ///< robust-loss scale, in standard deviations
+  /// When set, the range edges take this mixture's likelihood (MixtureResidual: its LOS std
+  /// widened by each range's variance scale) instead of range_sigma and the robust loss
+  std::optional<RangeMixture> range_mixture;
   Eigen::Vector3d odometry_sigma{0.05, 0.05, 0.02};  ///< per odometry edge [m, m, rad]
   /// Multiplies the std of every odometry edge (its own or odometry_sigma)
   double odometry_sigma_factor = 1.0;

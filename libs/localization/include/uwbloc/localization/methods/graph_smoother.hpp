@@ -51,6 +51,8 @@ struct GraphSmootherParams {
   bool bias_trial_confirm = false;
   BiasMode scale = BiasMode::kAuto;  ///< a range scale common to the anchors: z = (1 + s) d + b
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
+  /// sigma=auto: the range edges take the NLOS mixture learnt from the residuals, when one is
+  bool nlos_mixture = true;
   bool estimate_anchors = false;  ///< anchors' x, y with a prior
   double anchor_prior = 0.5;      ///< [m]
   int iterations = 100;
@@ -107,6 +109,11 @@ struct GraphSmootherParams {
       "residuals grow with the distance, alike in both halves of the run)");
     v("noise_rounds", noise_rounds,
       "sigma=auto: variance-component re-estimates of the range std (each a re-solve)");
+    v("nlos_mixture", nlos_mixture,
+      "sigma=auto: when the range residuals are better explained by a LOS Gaussian plus an "
+      "exponential NLOS excess (fitRangeMixture's BIC test), the range edges take that "
+      "mixture's likelihood instead of the robust loss, learnt again from each solve's "
+      "residuals (at most 3 rounds)");
     v("anchors", estimate_anchors, "self-calibrate the anchors (x, y)");
     v("anchor_prior", anchor_prior, "anchor prior std [m]");
     v("iterations", iterations, "solver iterations");
