@@ -52,10 +52,10 @@ constexpr double kMinOdometryFactor = 1.0 / 64.0;
 // Its cross-validation's test: blocks of consecutive held-out ranges, at least this many, and the
 // standard errors a better factor must gain by.
 constexpr size_t kCvBlock = 50;
-/// nlos_mixture: at most this many fits of the mixture, each followed by a solve
-constexpr int kMixtureRounds = 3;
 constexpr size_t kCvMinBlocks = 5;
 constexpr double kCvStandardErrors = 2.0;
+/// nlos_mixture: at most this many fits of the mixture, each followed by a solve
+constexpr int kMixtureRounds = 3;
 /// motion=cv with q=auto: the white-acceleration spectral density the estimate starts from
 /// [m^2/s^3] (a walking pace's turns; the variance components move it to the data's).
 constexpr double kStartAccelPsd = 1.0;
