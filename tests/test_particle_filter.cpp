@@ -406,6 +406,85 @@ TEST(RangeMixture, TheLinksNlosStateRelaxesTowardTheMixturesShare) {
   EXPECT_EQ(track.prior(1, 0, 10.0, w), w);
 }
 
+// Each link's NLOS state from its other ranges (nlosStatePriors). Three links at 10 Hz for
+// 600 s, LOS noise 0.05 m, NLOS excess exponential with mean 0.5 m: link 1 in sight all along,
+// link 2 out of sight in 30 s stretches (every other one), link 3 out of sight 80 % of the time
+// in 10 s stretches. The priors then read each link's state, the memory lies between the
+// ranges' spacing and the stretches, and the state predicts better than one fraction. Where
+// NLOS strikes each range independently (w = 0.4 for all), the state predicts no better: the
+// priors stay near w, or none are returned.
+TEST(RangeMixture, EachLinksNlosStateIsReadFromItsNeighboursInTime) {
+  std::mt19937 rng(17);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  std::exponential_distribution<double> excess(1.0 / 0.5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto samples = [&](auto nlos) {
+    std::vector<NlosSample> out;
+    for (int k = 0; k < 6000; ++k)
+      for (int link = 1; link <= 3; ++link) {
+        const double t = 0.1 * k + 0.01 * link;
+        out.push_back({link, 0, t, noise(rng) + (nlos(link, t) ? excess(rng) : 0.0), 0.05});
+      }
+    return out;
+  };
+  std::vector<bool> stretch3(60);
+  for (auto&& s : stretch3) s = u(rng) < 0.8;
+  auto persistent = [&](int link, double t) {
+    if (link == 1) return false;
+    if (link == 2) return static_cast<int>(t / 30.0) % 2 == 1;
+    return static_cast<bool>(stretch3[static_cast<size_t>(t / 10.0)]);
+  };
+  auto data = samples(persistent);
+  double share = 0.0;
+  for (const auto& s : data) share += persistent(s.anchor, s.t) ? 1.0 : 0.0;
+  share /= static_cast<double>(data.size());
+  RangeMixture m;
+  m.sigma = 0.05;
+  m.nlos_mean = 0.5;
+  m.nlos_fraction = share;
+  const auto state = nlosStatePriors(m, data);
+  ASSERT_TRUE(state);
+  EXPECT_GE(state->memory, 0.5);
+  EXPECT_LE(state->memory, 16.0);
+  EXPECT_GT(state->log_likelihood_gain, 0.05);
+  ASSERT_EQ(state->priors.size(), data.size());
+  // Within each stretch (away from its ends) the prior reads the link's state.
+  std::map<std::pair<int, bool>, std::vector<double>> by_state;
+  for (size_t i = 0; i < data.size(); ++i) {
+    const double phase = std::fmod(data[i].t, 10.0);
+    if (phase < 2.0 || phase > 8.0) continue;
+    by_state[{data[i].anchor, persistent(data[i].anchor, data[i].t)}].push_back(state->priors[i]);
+  }
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "[ STATE    ] memory %.3g s, gain %.3f per range; median priors: link 1 %.3f, "
+      "link 2 LOS %.3f NLOS %.3f, link 3 LOS %.3f NLOS %.3f (w %.3f)\n",
+      state->memory, state->log_likelihood_gain, median(by_state[{1, false}]),
+      median(by_state[{2, false}]), median(by_state[{2, true}]), median(by_state[{3, false}]),
+      median(by_state[{3, true}]), share);
+  // The posteriors are soft (an NLOS range a little long looks LOS: about a fifth of them here),
+  // so a stretch's mean reads near 0.8, not 1.
+  EXPECT_LT(median(by_state[{1, false}]), 0.2);
+  EXPECT_LT(median(by_state[{2, false}]), 0.2);
+  EXPECT_GT(median(by_state[{2, true}]), 0.7);
+  EXPECT_LT(median(by_state[{3, false}]), 0.3);
+  EXPECT_GT(median(by_state[{3, true}]), 0.7);
+
+  // Independent NLOS: nothing, or priors near w.
+  auto independent = [&](int, double) { return u(rng) < 0.4; };
+  m.nlos_fraction = 0.4;
+  if (const auto none = nlosStatePriors(m, samples(independent))) {
+    EXPECT_LT(none->log_likelihood_gain, 1e-3);
+    for (double p : none->priors) EXPECT_NEAR(p, 0.4, 0.1);
+  }
+  // Too few ranges: nothing.
+  data.resize(99);
+  EXPECT_FALSE(nlosStatePriors(m, data));
+}
+
 // The graph's range residual under the mixture: f^2 / 2 is the negative log-density (with its
 // floor) up to a constant, f is zero at the density's mode and increases through it, its slope
 // agrees with central differences, and a range far shorter than the distance stops pulling.

@@ -47,14 +47,21 @@ INSTANTIATE_TEST_SUITE_P(Committed, EveryScenario,
 TEST(Office, SmoothersTakeTheNlosMixture) {
   const auto ds = test::simulatedScenario("office", 1);
   for (const std::string m : {"graph-uwb-odom", "graph-uwb"}) {
-    const auto mixture = eval::evaluateMethod(ds, m, 1, 1);
+    const auto state = eval::evaluateMethod(ds, m, 1, 1);
+    const auto mixture = eval::evaluateMethod(ds, m + ":nlos_state=0", 1, 1);
     const auto robust = eval::evaluateMethod(ds, m + ":nlos_mixture=0", 1, 1);
-    std::printf("[ OFFICE   ] %s rmse_2d %.3f m (nlos_mixture=0: %.3f m)\n", m.c_str(),
-                mixture.metrics.rmse_2d, robust.metrics.rmse_2d);
+    std::printf(
+        "[ OFFICE   ] %s rmse_2d %.3f m (nlos_state=0: %.3f m, nlos_mixture=0: %.3f m), "
+        "NLOS state over %.3g s\n",
+        m.c_str(), state.metrics.rmse_2d, mixture.metrics.rmse_2d, robust.metrics.rmse_2d,
+        state.estimated_nlos_memory.value_or(0.0));
     EXPECT_GT(mixture.events.count("range_mixture_solves"), 0u) << m;
     EXPECT_EQ(robust.events.count("range_mixture_solves"), 0u) << m;
+    EXPECT_EQ(mixture.events.count("nlos_state_solves"), 0u) << m;
+    EXPECT_GT(state.events.count("nlos_state_solves"), 0u) << m;
     EXPECT_LT(mixture.metrics.rmse_2d, 0.5 * robust.metrics.rmse_2d) << m;
     EXPECT_LT(mixture.metrics.rmse_2d, m == "graph-uwb" ? 0.12 : 0.1) << m;
+    EXPECT_LT(state.metrics.rmse_2d, 0.85 * mixture.metrics.rmse_2d) << m;
   }
 }
 

@@ -153,6 +153,8 @@ nlohmann::json metricsJson(const data::Dataset& dataset, const std::vector<Metho
                                         {"sigma", number(x->sigma)},
                                         {"nlos_mean", number(x->nlos_mean)},
                                         {"weight", number(x->weight)}};
+      if (m.estimated_nlos_memory && m.estimated_range_mixture)
+        e["estimated_range_mixture"]["nlos_memory"] = number(*m.estimated_nlos_memory);
       if (m.estimated_accel_psd) e["estimated_accel_psd"] = number(*m.estimated_accel_psd);
       if (m.estimated_motion_scale) e["estimated_motion_scale"] = number(*m.estimated_motion_scale);
     }
@@ -350,6 +352,11 @@ void rejectionLines(std::ostringstream& out, const Json& methods) {
                     x.contains("weight") ? num(x, "weight") : 1.0,
                     x.contains("weight") ? 1.0 / num(x, "weight") : 1.0);
       out << buf;
+      if (x.contains("nlos_memory")) {
+        std::snprintf(buf, sizeof buf, " each link's NLOS state over %.3g s;",
+                      num(x, "nlos_memory"));
+        out << buf;
+      }
     }
     if (m.contains("estimated_accel_psd")) {
       std::snprintf(buf, sizeof buf, " motion q %.3g m^2/s^3;", num(m, "estimated_accel_psd"));

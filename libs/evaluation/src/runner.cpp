@@ -284,6 +284,7 @@ MethodSummary summarise(const data::Dataset& dataset, const std::string& spec,
       s.estimated_tag_noise = run.statistics.estimated_tag_noise;
       s.estimated_range_scale = run.statistics.estimated_range_scale;
       s.estimated_range_mixture = run.statistics.estimated_range_mixture;
+      s.estimated_nlos_memory = run.statistics.estimated_nlos_memory;
       s.estimated_accel_psd = run.statistics.estimated_accel_psd;
       s.estimated_motion_scale = run.statistics.estimated_motion_scale;
       s.range_decisions = std::move(run.statistics.range_decisions);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 
 #include "uwbloc/localization/range_noise.hpp"
@@ -200,6 +201,77 @@ double NlosStateTrack::prior(int anchor, int tag, double t, double w) const {
 
 void NlosStateTrack::update(int anchor, int tag, double t, double posterior) {
   links_[{anchor, tag}] = {posterior, t};
+}
+
+namespace {
+
+/// nlosStatePriors' priors at one memory: per link, sums of the kernel weights and of the
+/// weighted posteriors over the earlier ranges (forward) and the later ones (backward).
+std::vector<double> smoothedPriors(const std::vector<std::vector<size_t>>& links,
+                                   const std::vector<NlosSample>& samples,
+                                   const std::vector<double>& post, double w, double memory) {
+  std::vector<double> prior(samples.size(), w);
+  for (const auto& idx : links) {
+    const size_t n = idx.size();
+    std::vector<double> num(n, w), den(n, 1.0);
+    double a = 0.0, b = 0.0;  // forward sums: weight and weighted posteriors
+    for (size_t i = 0; i < n; ++i) {
+      if (i > 0) {
+        const double k = std::exp(-(samples[idx[i]].t - samples[idx[i - 1]].t) / memory);
+        a = k * (a + 1.0);
+        b = k * (b + post[idx[i - 1]]);
+      }
+      den[i] += a;
+      num[i] += b;
+    }
+    a = b = 0.0;
+    for (size_t i = n; i-- > 0;) {
+      if (i + 1 < n) {
+        const double k = std::exp(-(samples[idx[i + 1]].t - samples[idx[i]].t) / memory);
+        a = k * (a + 1.0);
+        b = k * (b + post[idx[i + 1]]);
+      }
+      prior[idx[i]] = (num[i] + b) / (den[i] + a);
+    }
+  }
+  return prior;
+}
+
+}  // namespace
+
+std::optional<NlosStatePriors> nlosStatePriors(const RangeMixture& m,
+                                               const std::vector<NlosSample>& samples) {
+  if (samples.size() < kMinResiduals) return std::nullopt;
+  std::map<std::pair<int, int>, std::vector<size_t>> by_link;
+  for (size_t i = 0; i < samples.size(); ++i)
+    by_link[{samples[i].anchor, samples[i].tag}].push_back(i);
+  std::vector<std::vector<size_t>> links;
+  for (auto& [link, idx] : by_link) {
+    std::stable_sort(idx.begin(), idx.end(),
+                     [&](size_t a, size_t b) { return samples[a].t < samples[b].t; });
+    links.push_back(std::move(idx));
+  }
+  const double w = m.nlos_fraction;
+  std::vector<double> post(samples.size());
+  double base = 0.0;  // log-likelihood with w for every range
+  for (size_t i = 0; i < samples.size(); ++i) {
+    post[i] = m.nlosPosterior(samples[i].residual, samples[i].sigma, w);
+    base += m.logDensity(samples[i].residual, samples[i].sigma);
+  }
+  std::optional<NlosStatePriors> best;
+  double best_gain = 0.0;
+  for (double memory = 0.0625; memory <= 256.0; memory *= 2.0) {
+    auto prior = smoothedPriors(links, samples, post, w, memory);
+    double ll = 0.0;
+    for (size_t i = 0; i < samples.size(); ++i)
+      ll += m.withNlosFraction(prior[i]).logDensity(samples[i].residual, samples[i].sigma);
+    const double gain = (ll - base) / static_cast<double>(samples.size());
+    if (gain > best_gain) {
+      best_gain = gain;
+      best = NlosStatePriors{memory, gain, std::move(prior)};
+    }
+  }
+  return best;
 }
 
 bool RangeMixture::outside(double e, double sigma_eff, double k) const {

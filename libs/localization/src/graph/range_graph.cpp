@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "cost_functions.hpp"
@@ -130,15 +131,22 @@ void RangeGraph::build(const RangeGraphParams& params) {
     p.AddParameterBlock(a.position.data(), 3, new ceres::SubsetManifold(3, {2}));
   for (auto& b : biases_) p.AddParameterBlock(&b, 1);
   p.AddParameterBlock(&scale_, 1);
-  // Under a mixture, one residual shape per variance scale (most ranges share one).
-  std::map<double, std::shared_ptr<const MixtureResidual>> shapes;
-  for (const auto& r : ranges_) {
+  // Under a mixture, one residual shape per variance scale and NLOS prior (to the nearest
+  // 1 / kPriorLevels; most ranges share a few).
+  constexpr double kPriorLevels = 20.0;
+  std::map<std::pair<double, long>, std::shared_ptr<const MixtureResidual>> shapes;
+  for (size_t k = 0; k < ranges_.size(); ++k) {
+    const auto& r = ranges_[k];
     if (r.anchor == params_.left_out_anchor) continue;
     if (params_.range_mixture) {
-      auto& shape = shapes[r.variance_scale];
-      if (!shape)
+      const long level = nlos_prior_.empty() ? -1 : std::lround(nlos_prior_[k] * kPriorLevels);
+      auto& shape = shapes[{r.variance_scale, level}];
+      if (!shape) {
+        RangeMixture m = *params_.range_mixture;
+        if (level >= 0) m = m.withNlosFraction(static_cast<double>(level) / kPriorLevels);
         shape = std::make_shared<const MixtureResidual>(
-            *params_.range_mixture, params_.range_mixture->sigma * std::sqrt(r.variance_scale));
+            m, params_.range_mixture->sigma * std::sqrt(r.variance_scale));
+      }
       p.AddResidualBlock(MixtureRangeCost::Create(r.range, r.tag, shape), nullptr,
                          poses_[static_cast<size_t>(r.pose)].data(),
                          anchors_[static_cast<size_t>(r.anchor)].position.data(),
@@ -214,6 +222,21 @@ void RangeGraph::build(const RangeGraphParams& params) {
     p.SetParameterBlockConstant(poses_.front().data());
     if (!anchors_.empty()) p.SetParameterBlockConstant(anchors_.front().position.data());
   }
+}
+
+void RangeGraph::setNlosPriors(std::vector<double> priors) {
+  if (!priors.empty() && priors.size() != ranges_.size())
+    throw std::invalid_argument("RangeGraph::setNlosPriors: " + std::to_string(priors.size()) +
+                                " priors for " + std::to_string(ranges_.size()) + " ranges");
+  nlos_prior_ = std::move(priors);
+}
+
+std::vector<RangeGraph::RangeEdge> RangeGraph::rangeEdges() const {
+  std::vector<RangeEdge> out;
+  out.reserve(ranges_.size());
+  for (const auto& r : ranges_)
+    out.push_back({anchors_[static_cast<size_t>(r.anchor)].id, r.tag_id, r.variance_scale});
+  return out;
 }
 
 GraphSolution RangeGraph::solve() {

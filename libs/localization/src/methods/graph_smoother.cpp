@@ -427,6 +427,7 @@ void GraphSmoother::addLandmarks(graph::RangeGraph& g, const std::vector<double>
 
 // Each range constrains the vertex nearest to it in time.
 void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& times) {
+  range_times_.clear();
   for (const auto& r : ranges_) {
     const auto it = std::lower_bound(times.begin(), times.end(), r.measurement.t);
     size_t i = static_cast<size_t>(it - times.begin());
@@ -442,6 +443,7 @@ void GraphSmoother::addRanges(graph::RangeGraph& g, const std::vector<double>& t
                            : r.measurement.tag_on_robot;
     g.addRange(static_cast<int>(i), r.measurement.anchor_id, r.measurement.range, tag,
                r.variance_scale, r.measurement.tag_id);
+    range_times_.push_back(r.measurement.t);
   }
 }
 
@@ -760,6 +762,7 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
     const auto without = g.values();
     std::map<int, size_t> index;  // anchor id -> index
     for (size_t a = 0; a < g.anchors().size(); ++a) index[g.anchors()[a].id] = a;
+    bool state_applied = false;
     for (int round = 0; round < kMixtureRounds; ++round) {
       std::vector<std::pair<int, double>> residuals = g.rangeResiduals();
       if (p.estimate_bias)
@@ -771,11 +774,22 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
           std::abs(fit->mixture.sigma / p.range_mixture->sigma - 1.0) < kSettled &&
           std::abs(fit->mixture.nlos_mean / p.range_mixture->nlos_mean - 1.0) < kSettled &&
           std::abs(fit->mixture.nlos_fraction - p.range_mixture->nlos_fraction) < kSettled;
-      if (settled) break;
+      // From the second round each range's prior is its link's state, read from the
+      // residuals of the solve under one fraction (and then under the state).
+      std::optional<NlosStatePriors> state;
+      if (round > 0 && params_.nlos_state)
+        state = nlosStatePriors(g, fit->mixture, p.estimate_bias);
+      if (settled && (!state || state_applied)) break;
       p.range_mixture = fit->mixture;
-      ++stats_.events["range_mixture_solves"];
+      state_applied = state.has_value();
+      g.setNlosPriors(state ? std::move(state->priors) : std::vector<double>{});
+      stats_.estimated_nlos_memory.reset();
+      if (state) stats_.estimated_nlos_memory = state->memory;
+      ++stats_.events[state_applied ? "nlos_state_solves" : "range_mixture_solves"];
       if (!solveOnce(g, p)) {
         p.range_mixture.reset();
+        g.setNlosPriors({});
+        stats_.estimated_nlos_memory.reset();
         g.restore(without);
         if (!solveOnce(g, p)) return;
         break;
@@ -818,6 +832,22 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
 // 0.070 m) and agree between the two halves, yet the reference gives -0.07 / -0.05 / -0.02 m over
 // the run and uwb-pf goes 0.139 -> 0.269 m with them; graph-uwb on the same ranges does not take
 // them (0.127 -> 0.117 m). A 0.5 m bias on one of three simulated anchors both take.
+std::optional<NlosStatePriors> GraphSmoother::nlosStatePriors(const graph::RangeGraph& g,
+                                                              const RangeMixture& m,
+                                                              bool biased) const {
+  const auto edges = g.rangeEdges();
+  if (edges.size() != range_times_.size()) return std::nullopt;  // ranges not from addRanges
+  std::map<int, size_t> index;                                   // anchor id -> index
+  for (size_t a = 0; a < g.anchors().size(); ++a) index[g.anchors()[a].id] = a;
+  const auto residuals = g.rangeResiduals();
+  std::vector<NlosSample> samples(edges.size());
+  for (size_t k = 0; k < edges.size(); ++k)
+    samples[k] = {edges[k].anchor_id, edges[k].tag_id, range_times_[k],
+                  residuals[k].second - (biased ? g.bias(index.at(edges[k].anchor_id)) : 0.0),
+                  m.sigma * std::sqrt(edges[k].variance_scale)};
+  return loc::nlosStatePriors(m, samples);
+}
+
 bool GraphSmoother::rangesAloneTakeBiases() const {
   GraphSmootherParams cv;  // graph-uwb's defaults
   cv.front = params_.front;

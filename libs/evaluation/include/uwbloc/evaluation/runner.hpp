@@ -88,6 +88,7 @@ struct MethodSummary {
   std::map<int, loc::NoiseEstimate> estimated_tag_noise;  ///< per tag id (first run)
   std::optional<double> estimated_range_scale;        ///< the model's range scale (first run)
   std::optional<loc::RangeMixture> estimated_range_mixture;  ///< the range likelihood in force
+  std::optional<double> estimated_nlos_memory;  ///< its links' NLOS state time constant [s]
   std::optional<double> estimated_accel_psd;  ///< the learnt motion q [m^2/s^3] (first run)
   std::optional<double> estimated_motion_scale;  ///< the learnt odometry noise scale (first run)
   std::vector<loc::ParamInfo> parameters;

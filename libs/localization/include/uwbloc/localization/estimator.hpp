@@ -85,6 +85,9 @@ struct EstimatorStatistics {
   /// The LOS / NLOS mixture learnt from the range residuals, when it explains them better than
   /// one Gaussian (range_mixture.hpp).
   std::optional<RangeMixture> estimated_range_mixture;
+  /// Under the mixture, the time constant of each link's NLOS state when one was learnt [s]
+  /// (nlosStatePriors).
+  std::optional<double> estimated_nlos_memory;
   /// A learnt white-acceleration spectral density of the tag's motion [m^2/s^3] (q=auto).
   std::optional<double> estimated_accel_psd;
   /// The factor on the odometry noise learnt at the start (a particle filter's a_scale=auto).

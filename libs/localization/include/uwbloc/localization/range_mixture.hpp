@@ -94,6 +94,32 @@ class NlosStateTrack {
   std::map<std::pair<int, int>, Link> links_;
 };
 
+/// One range for nlosStatePriors: its link (anchor and tag), time, residual (before the
+/// mixture: range minus predicted distance, less any bias) and the LOS std it takes [s, m, m].
+struct NlosSample {
+  int anchor = 0, tag = 0;
+  double t = 0.0, residual = 0.0, sigma = 0.1;
+};
+/// Each range's NLOS prior from its own link's other ranges, a smoothing (in both directions) of
+/// their NLOS posteriors under `m` (RangeMixture::nlosPosterior at w) in time: with
+/// K = exp(-|t_j - t_i| / memory) over the link's other ranges j,
+///   p_i = (w + sum_j K post_j) / (1 + sum_j K),
+/// the mixture's w counting as one range. An anchor out of sight while the robot crosses a room
+/// makes a run of long ranges, and its ranges' NLOS chance is that run's, not the run's share
+/// over all ranges: a link in sight all along is then read as LOS and its short ranges place the
+/// path. The memory is chosen from the data: each candidate (1/16 s to 256 s, doubling) is scored
+/// by the leave-one-out log-likelihood of every residual under the mixture at its own prior (range
+/// i left out of its prior), and the best kept only when it beats w for every range. Nothing
+/// when no candidate does (NLOS that does not persist in time, or no NLOS), or `samples` (in any
+/// order) has fewer than 100 ranges.
+struct NlosStatePriors {
+  double memory = 0.0;               ///< [s]
+  double log_likelihood_gain = 0.0;  ///< per range, over w for every range
+  std::vector<double> priors;        ///< in the order of `samples`
+};
+std::optional<NlosStatePriors> nlosStatePriors(const RangeMixture& m,
+                                               const std::vector<NlosSample>& samples);
+
 /// The mixture's fit to range residuals after a solve, each with its anchor id: maximum
 /// likelihood (Ceres) over w, s, m and one offset (where the LOS residuals lie: the solved
 /// path's own pull), from at most 20 000 residuals (a longer run's thinned evenly). Nothing when:

@@ -171,6 +171,17 @@ class RangeGraph {
   void restore(const Values& v);
   /// Holds a pose constant (after build()): e.g. the oldest vertex of a sliding window.
   void holdPose(int pose);
+  /// Under the parameters' range mixture: each range's NLOS fraction in place of the mixture's
+  /// (nlosStatePriors), in the order added, taken at the next build() to the nearest 0.05 (one
+  /// residual shape per level); empty: the mixture's for every range. Throws
+  /// std::invalid_argument when neither empty nor one per range.
+  void setNlosPriors(std::vector<double> priors);
+  /// Each range's anchor id, tag id and variance scale (over range_sigma^2), in the order added.
+  struct RangeEdge {
+    int anchor_id, tag_id;
+    double variance_scale;
+  };
+  std::vector<RangeEdge> rangeEdges() const;
   /// Holds the range biases and the scale at their values (after build()).
   void holdRangeModel();
 
@@ -200,6 +211,7 @@ class RangeGraph {
     Eigen::Vector3d delta;
     std::optional<Eigen::Matrix3d> sqrt_information;  ///< upper triangular; none: the params'
   };
+  std::vector<double> nlos_prior_;  ///< setNlosPriors
   std::vector<Eigen::Vector3d> poses_;
   std::vector<uwb::Anchor> anchors_;
   std::vector<Eigen::Vector3d> anchor_prior_;

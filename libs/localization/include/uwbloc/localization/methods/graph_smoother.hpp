@@ -53,6 +53,9 @@ struct GraphSmootherParams {
   int noise_rounds = 8;  ///< sigma=auto: at most this many variance re-estimates and re-solves
   /// sigma=auto: the range edges take the NLOS mixture learnt from the residuals, when one is
   bool nlos_mixture = true;
+  /// Under the mixture: each range's NLOS fraction from its link's other ranges nearby in time
+  /// (nlosStatePriors), when that predicts the residuals better than one fraction for all
+  bool nlos_state = true;
   bool estimate_anchors = false;  ///< anchors' x, y with a prior
   double anchor_prior = 0.5;      ///< [m]
   int iterations = 100;
@@ -114,6 +117,11 @@ struct GraphSmootherParams {
       "exponential NLOS excess (fitRangeMixture's BIC test), the range edges take that "
       "mixture's likelihood instead of the robust loss, learnt again from each solve's "
       "residuals (at most 3 rounds)");
+    v("nlos_state", nlos_state,
+      "under the NLOS mixture: each range's NLOS fraction is its link's (anchor and tag) over "
+      "its other ranges nearby in time (an anchor out of sight for a while), the time constant "
+      "chosen among 1/16 to 256 s by the residuals' leave-one-out likelihood; kept only when "
+      "that beats one fraction for every range");
     v("anchors", estimate_anchors, "self-calibrate the anchors (x, y)");
     v("anchor_prior", anchor_prior, "anchor prior std [m]");
     v("iterations", iterations, "solver iterations");
@@ -151,12 +159,17 @@ class GraphSmoother : public UwbEstimator {
   void addIcpEdges(graph::RangeGraph& g, const std::vector<double>& times) const;
   void addLandmarks(graph::RangeGraph& g, const std::vector<double>& times) const;
   void addRanges(graph::RangeGraph& g, const std::vector<double>& times);
+  /// nlos_state: the priors for the graph's ranges under `m`, from its residuals (less the
+  /// biases when `biased`); nothing when the state does not predict them better than m's w.
+  std::optional<NlosStatePriors> nlosStatePriors(const graph::RangeGraph& g, const RangeMixture& m,
+                                                 bool biased) const;
 
   GraphSmootherParams params_;
   EstimatorContext context_;
   std::unique_ptr<Estimator> front_;
   std::unique_ptr<Estimator> icp_;
   std::vector<PoseEstimate> icp_poses_;
+  std::vector<double> range_times_;  ///< each range edge's time, in the order addRanges added
   // Collected along the run; the graph is built at the end.
   std::vector<OdometryIncrement> odometry_;
   std::vector<AcceptedRange> ranges_;
