@@ -18,6 +18,9 @@ constexpr size_t kMaxResiduals = 20000;
 constexpr double kMinNlosFraction = 0.05;
 /// The LOS part keeps at least 1 %: the NLOS test measures a range against it.
 constexpr double kMaxNlosFraction = 0.99;
+/// nlosStatePriors: the time constants tried, doubling from the first to the last [s].
+constexpr double kFirstNlosMemory = 1.0 / 16.0;
+constexpr double kLastNlosMemory = 256.0;
 
 /// The two parts' log-densities at e, unweighted: log N(e; 0, s) and log EMG(e; s, m), for
 /// doubles and Jets. The EMG's log is taken as log(1/m) + s^2/(2 m^2) - e/m + log Phi(e/s - s/m);
@@ -260,7 +263,7 @@ std::optional<NlosStatePriors> nlosStatePriors(const RangeMixture& m,
   }
   std::optional<NlosStatePriors> best;
   double best_gain = 0.0;
-  for (double memory = 0.0625; memory <= 256.0; memory *= 2.0) {
+  for (double memory = kFirstNlosMemory; memory <= kLastNlosMemory; memory *= 2.0) {
     auto prior = smoothedPriors(links, samples, post, w, memory);
     double ll = 0.0;
     for (size_t i = 0; i < samples.size(); ++i)

@@ -827,11 +827,6 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   }
 }
 
-// The MRPT demo without its manifest's sigma, first 60 s (the particle filters' learning start):
-// with the odometry the biases of +0.01 / -0.16 / +0.07 m explain the variance (std 0.107 ->
-// 0.070 m) and agree between the two halves, yet the reference gives -0.07 / -0.05 / -0.02 m over
-// the run and uwb-pf goes 0.139 -> 0.269 m with them; graph-uwb on the same ranges does not take
-// them (0.127 -> 0.117 m). A 0.5 m bias on one of three simulated anchors both take.
 std::optional<NlosStatePriors> GraphSmoother::nlosStatePriors(const graph::RangeGraph& g,
                                                               const RangeMixture& m,
                                                               bool biased) const {
@@ -848,6 +843,11 @@ std::optional<NlosStatePriors> GraphSmoother::nlosStatePriors(const graph::Range
   return loc::nlosStatePriors(m, samples);
 }
 
+// The MRPT demo without its manifest's sigma, first 60 s (the particle filters' learning start):
+// with the odometry the biases of +0.01 / -0.16 / +0.07 m explain the variance (std 0.107 ->
+// 0.070 m) and agree between the two halves, yet the reference gives -0.07 / -0.05 / -0.02 m over
+// the run and uwb-pf goes 0.139 -> 0.269 m with them; graph-uwb on the same ranges does not take
+// them (0.127 -> 0.117 m). A 0.5 m bias on one of three simulated anchors both take.
 bool GraphSmoother::rangesAloneTakeBiases() const {
   GraphSmootherParams cv;  // graph-uwb's defaults
   cv.front = params_.front;
