@@ -44,19 +44,30 @@ PartLogDensities<T> partLogDensities(const T& e, const T& s, const T& m) {
   return out;
 }
 
-/// log of (1 - w) N(e; 0, s) + w EMG(e; s, m), for doubles and Jets; the LOS part alone where
-/// the NLOS part has no density.
+/// log of (1 - w) N + w EMG from the parts' log-densities, for doubles and Jets; the LOS part
+/// alone where the NLOS part has no density.
 template <class T>
-T mixtureLogDensity(const T& e, const T& w, const T& s, const T& m) {
+T mixtureLogDensity(const PartLogDensities<T>& parts, const T& w) {
   using std::exp;
   using std::log;
-  const auto parts = partLogDensities(e, s, m);
   const T log_los = log(T(1) - w) + parts.los;
   if (!parts.has_nlos) return log_los;
   const T log_nlos = log(w) + parts.nlos;
   const T hi = log_los > log_nlos ? log_los : log_nlos;
   const T lo = log_los > log_nlos ? log_nlos : log_los;
   return hi + log(T(1) + exp(lo - hi));
+}
+
+/// log of (1 - w) N(e; 0, s) + w EMG(e; s, m), for doubles and Jets.
+template <class T>
+T mixtureLogDensity(const T& e, const T& w, const T& s, const T& m) {
+  return mixtureLogDensity(partLogDensities(e, s, m), w);
+}
+
+/// The LOS part's log-density (weight 1 - w) k stds out, std s: below it a range is one neither
+/// part explains (RangeMixture::outside), and MixtureResidual's floor.
+double losLogDensityAt(double w, double s, double k) {
+  return std::log1p(-w) - 0.5 * k * k - std::log(s * std::sqrt(2.0 * M_PI));
 }
 
 /// One residual's negative log-likelihood under the mixture; the parameters are unconstrained:
@@ -129,8 +140,7 @@ double RangeMixture::logDensity(double e, double sigma_eff) const {
 
 MixtureResidual::MixtureResidual(const RangeMixture& mixture, double sigma_eff, double floor_k)
     : mixture_(mixture), sigma_(std::max(sigma_eff, 1e-6)) {
-  log_floor_ = std::log1p(-mixture_.nlos_fraction) - 0.5 * floor_k * floor_k -
-               std::log(sigma_ * std::sqrt(2.0 * M_PI));
+  log_floor_ = losLogDensityAt(mixture_.nlos_fraction, sigma_, floor_k);
   // The mode: the best of a grid over the LOS part and the NLOS excess, then golden-section
   // search within a grid step of it (the density is unimodal there).
   const double lo = -3.0 * sigma_, hi = 3.0 * sigma_ + 2.0 * mixture_.nlos_mean;
@@ -255,11 +265,14 @@ std::optional<NlosStatePriors> nlosStatePriors(const RangeMixture& m,
     links.push_back(std::move(idx));
   }
   const double w = m.nlos_fraction;
+  // Each range's two parts' densities, once: every candidate weighs them by its own priors.
+  std::vector<PartLogDensities<double>> parts(samples.size());
   std::vector<double> post(samples.size());
   double base = 0.0;  // log-likelihood with w for every range
   for (size_t i = 0; i < samples.size(); ++i) {
+    parts[i] = partLogDensities(samples[i].residual, std::max(samples[i].sigma, 1e-6), m.nlos_mean);
     post[i] = m.nlosPosterior(samples[i].residual, samples[i].sigma, w);
-    base += m.logDensity(samples[i].residual, samples[i].sigma);
+    base += mixtureLogDensity(parts[i], w);
   }
   std::optional<NlosStatePriors> best;
   double best_gain = 0.0;
@@ -267,7 +280,7 @@ std::optional<NlosStatePriors> nlosStatePriors(const RangeMixture& m,
     auto prior = smoothedPriors(links, samples, post, w, memory);
     double ll = 0.0;
     for (size_t i = 0; i < samples.size(); ++i)
-      ll += m.withNlosFraction(prior[i]).logDensity(samples[i].residual, samples[i].sigma);
+      ll += mixtureLogDensity(parts[i], m.withNlosFraction(prior[i]).nlos_fraction);
     const double gain = (ll - base) / static_cast<double>(samples.size());
     if (gain > best_gain) {
       best_gain = gain;
@@ -279,8 +292,7 @@ std::optional<NlosStatePriors> nlosStatePriors(const RangeMixture& m,
 
 bool RangeMixture::outside(double e, double sigma_eff, double k) const {
   const double sd = std::max(sigma_eff, 1e-6);
-  return logDensity(e, sd) <
-         std::log1p(-nlos_fraction) - 0.5 * k * k - std::log(sd * std::sqrt(2.0 * M_PI));
+  return logDensity(e, sd) < losLogDensityAt(nlos_fraction, sd, k);
 }
 
 std::optional<RangeMixtureFit> fitRangeMixture(

@@ -777,8 +777,7 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
       // From the second round each range's prior is its link's state, read from the
       // residuals of the solve under one fraction (and then under the state).
       std::optional<NlosStatePriors> state;
-      if (round > 0 && params_.nlos_state)
-        state = nlosStatePriors(g, fit->mixture, p.estimate_bias);
+      if (round > 0 && params_.nlos_state) state = nlosStatePriors(g, fit->mixture, residuals);
       if (settled && (!state || state_applied)) break;
       p.range_mixture = fit->mixture;
       state_applied = state.has_value();
@@ -827,18 +826,14 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   }
 }
 
-std::optional<NlosStatePriors> GraphSmoother::nlosStatePriors(const graph::RangeGraph& g,
-                                                              const RangeMixture& m,
-                                                              bool biased) const {
+std::optional<NlosStatePriors> GraphSmoother::nlosStatePriors(
+    const graph::RangeGraph& g, const RangeMixture& m,
+    const std::vector<std::pair<int, double>>& residuals) const {
   const auto edges = g.rangeEdges();
   if (edges.size() != range_times_.size()) return std::nullopt;  // ranges not from addRanges
-  std::map<int, size_t> index;                                   // anchor id -> index
-  for (size_t a = 0; a < g.anchors().size(); ++a) index[g.anchors()[a].id] = a;
-  const auto residuals = g.rangeResiduals();
   std::vector<NlosSample> samples(edges.size());
   for (size_t k = 0; k < edges.size(); ++k)
-    samples[k] = {edges[k].anchor_id, edges[k].tag_id, range_times_[k],
-                  residuals[k].second - (biased ? g.bias(index.at(edges[k].anchor_id)) : 0.0),
+    samples[k] = {edges[k].anchor_id, edges[k].tag_id, range_times_[k], residuals[k].second,
                   m.sigma * std::sqrt(edges[k].variance_scale)};
   return loc::nlosStatePriors(m, samples);
 }

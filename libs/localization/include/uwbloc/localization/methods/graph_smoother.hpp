@@ -159,10 +159,12 @@ class GraphSmoother : public UwbEstimator {
   void addIcpEdges(graph::RangeGraph& g, const std::vector<double>& times) const;
   void addLandmarks(graph::RangeGraph& g, const std::vector<double>& times) const;
   void addRanges(graph::RangeGraph& g, const std::vector<double>& times);
-  /// nlos_state: the priors for the graph's ranges under `m`, from its residuals (less the
-  /// biases when `biased`); nothing when the state does not predict them better than m's w.
-  std::optional<NlosStatePriors> nlosStatePriors(const graph::RangeGraph& g, const RangeMixture& m,
-                                                 bool biased) const;
+  /// nlos_state: the priors for the graph's ranges under `m`, from their `residuals` (anchor
+  /// id and residual, in the order added, the biases taken out as the mixture's fit had them);
+  /// nothing when the state does not predict them better than m's w.
+  std::optional<NlosStatePriors> nlosStatePriors(
+      const graph::RangeGraph& g, const RangeMixture& m,
+      const std::vector<std::pair<int, double>>& residuals) const;
 
   GraphSmootherParams params_;
   EstimatorContext context_;
