@@ -211,6 +211,13 @@ class GraphSmoother : public UwbEstimator {
   /// `p` when fewer than two anchors have ranges to hold out); the graph is left at the solution
   /// it started from.
   double crossValidatedOdometryFactor(graph::RangeGraph& g, const graph::RangeGraphParams& p);
+  /// bias=auto, with a bias per anchor solved in `g` under `p`: whether one bias shared by
+  /// every anchor explains the ranges as well, by the Bayesian information criterion on the two
+  /// solves' costs at the range std learnt from the per-anchor solution: the shared bias stands
+  /// when twice its cost's rise is below (anchors with ranges - 1) ln(ranges). When it stands,
+  /// `p` takes it and `g` holds its solution; otherwise both are as they were. Graphs beyond
+  /// kMaxPosesForNoiseEstimate keep their biases unjudged.
+  bool preferCommonBias(graph::RangeGraph& g, graph::RangeGraphParams& p);
   /// Solves; counts an unusable solution and returns false.
   bool solveOnce(graph::RangeGraph& g, const graph::RangeGraphParams& p);
   Eigen::Vector3d priorSigma(const PoseEstimate& e) const;
