@@ -205,9 +205,11 @@ class GraphSmoother : public UwbEstimator {
   /// a factor f on the odometry edges' std, each anchor's ranges are left out in turn, the graph
   /// is solved from the current solution without them, and their residuals about their own
   /// median are scored by the robust loss (at the residuals' pooled spread about each anchor's
-  /// median; the biases and the scale held). Starting at the factor in `p`, f is halved (down to
-  /// 1/64) while the held-out ranges' losses fall beyond chance (a paired test over blocks of
-  /// consecutive ranges) and the solves succeed. Returns the last factor that passed (the one in
+  /// median, or under the NLOS mixture at its LOS std with each range's loss weighed by its LOS
+  /// probability; the biases and the scale held). Starting at the factor in `p`, f is halved
+  /// (down to 1/64) while the held-out ranges' mean loss falls and the solves succeed; a factor
+  /// is taken when its losses beat those of the factor taken before beyond chance (a paired
+  /// test over blocks of consecutive ranges). Returns the last factor that passed (the one in
   /// `p` when fewer than two anchors have ranges to hold out); the graph is left at the solution
   /// it started from.
   double crossValidatedOdometryFactor(graph::RangeGraph& g, const graph::RangeGraphParams& p);
