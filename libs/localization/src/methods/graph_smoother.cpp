@@ -477,10 +477,9 @@ double GraphSmoother::crossValidatedOdometryFactor(graph::RangeGraph& g,
   if (held_out.size() < 2) return start;
   const auto solved = g.values();
   // The loss's scale: the residuals' own spread about each anchor's median (the range std in `p`
-  // may still count the biases' part of the error, and a wide scale hides every difference).
+  // may still count the biases' part of the error, and a wide scale hides every difference);
+  // under the NLOS mixture, its LOS std (the spread counts the NLOS excess).
   const double spread = pooledSpread(g);
-  // Under the NLOS mixture, its LOS std (the spread counts the NLOS excess, and a wide scale
-  // hides every difference).
   const double c = p.loss_scale * (p.range_mixture ? p.range_mixture->sigma
                                    : spread > 0.0  ? spread
                                                    : p.range_sigma);
