@@ -438,12 +438,18 @@ ScaleEvidence RangeGraph::scaleEvidence() const {
   return out;
 }
 
-std::vector<std::pair<int, double>> RangeGraph::rangeResiduals() const {
+std::vector<std::pair<int, double>> RangeGraph::rangeResidualsLessBias() const {
   std::vector<std::pair<int, double>> out;
   out.reserve(ranges_.size());
   for (const auto& r : ranges_)
-    out.emplace_back(anchors_[static_cast<size_t>(r.anchor)].id,
-                     rangeResidual(r, nullptr) + biases_[biasIndex(r.anchor)]);
+    out.emplace_back(anchors_[static_cast<size_t>(r.anchor)].id, rangeResidual(r, nullptr));
+  return out;
+}
+
+std::vector<std::pair<int, double>> RangeGraph::rangeResiduals() const {
+  auto out = rangeResidualsLessBias();
+  for (size_t k = 0; k < ranges_.size(); ++k)
+    out[k].second += biases_[biasIndex(ranges_[k].anchor)];
   return out;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 
 #include "uwbloc/localization/fix_continuity.hpp"
 #include "uwbloc/localization/kalman/kalman.hpp"
@@ -487,14 +488,11 @@ double GraphSmoother::crossValidatedOdometryFactor(graph::RangeGraph& g,
   // every anchor (the mixture's posterior at its fraction): a range through a wall says how far
   // the wall is, not where the path is.
   std::map<int, std::vector<double>> los_weight;  // anchor id -> weights, in time
-  std::map<int, size_t> index;                    // anchor id -> index
-  for (size_t a = 0; a < g.anchors().size(); ++a) index[g.anchors()[a].id] = a;
-  for (const auto& [id, r] : g.rangeResiduals())
+  for (const auto& [id, e] : g.rangeResidualsLessBias())
     los_weight[id].push_back(
-        p.range_mixture
-            ? 1.0 - p.range_mixture->nlosPosterior(r - g.bias(index.at(id)), p.range_mixture->sigma,
-                                                   p.range_mixture->nlos_fraction)
-            : 1.0);
+        p.range_mixture ? 1.0 - p.range_mixture->nlosPosterior(e, p.range_mixture->sigma,
+                                                               p.range_mixture->nlos_fraction)
+                        : 1.0);
   // Each held-out range's robust loss, in a fixed order (anchor by anchor, in time).
   auto losses = [&](double factor) -> std::optional<std::vector<double>> {
     graph::RangeGraphParams q = p;
@@ -537,9 +535,8 @@ double GraphSmoother::crossValidatedOdometryFactor(graph::RangeGraph& g,
     return gain > kCvStandardErrors * se;
   };
   auto mean = [](const std::vector<double>& v) {
-    double sum = 0.0;
-    for (const double x : v) sum += x;
-    return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
+    return v.empty() ? 0.0
+                     : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
   };
   double best_factor = start;
   auto best = losses(start);
@@ -837,13 +834,10 @@ void GraphSmoother::solveBatch(graph::RangeGraph& g) {
   // then re-solved and learnt again from the new residuals while it moves.
   if (auto_sigma && params_.nlos_mixture) {
     const auto without = g.values();
-    std::map<int, size_t> index;  // anchor id -> index
-    for (size_t a = 0; a < g.anchors().size(); ++a) index[g.anchors()[a].id] = a;
     bool state_applied = false;
     for (int round = 0; round < kMixtureRounds; ++round) {
-      std::vector<std::pair<int, double>> residuals = g.rangeResiduals();
-      if (p.estimate_bias)
-        for (auto& [id, e] : residuals) e -= g.bias(index.at(id));
+      // (the biases are 0 unless estimated)
+      const auto residuals = g.rangeResidualsLessBias();
       const auto fit = fitRangeMixture(residuals);
       if (!fit) break;
       const bool settled =

@@ -150,6 +150,8 @@ class RangeGraph {
   /// After solve(): each range's anchor id and residual before its anchor's bias,
   /// z - (1 + scale) d [m], in the order added.
   std::vector<std::pair<int, double>> rangeResiduals() const;
+  /// The same less each range's bias (its anchor's, or the common one): z - (1 + scale) d - b.
+  std::vector<std::pair<int, double>> rangeResidualsLessBias() const;
   /// After solve(): each anchor's range residual statistics (ranges in the order added).
   std::vector<AnchorResiduals> anchorResiduals() const;
   /// After solve(): per tag id, its ranges' count and the robust std (1.4826 MAD) of their
